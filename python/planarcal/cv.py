@@ -1,0 +1,135 @@
+"""Drop-in replacements for OpenCV's ``findHomography`` and ``perspectiveTransform``.
+
+Same signatures, shapes, dtypes and return conventions as ``cv2``: H is float64 3 x 3 with
+H[2, 2] = 1, the mask uint8 N x 1, ``None`` where OpenCV returns None for a failure. Where
+OpenCV raises ``cv2.error``, these raise an error that is both a ``cv2.error`` (so existing
+``except cv2.error`` code still catches it) and a ``planarcal.HomographyError`` (a ValueError).
+
+Computed in float64 end to end (OpenCV rounds to float32 inside findHomography). Deliberate
+differences, all where OpenCV returns a wrong answer silently: NaN or infinite input raises
+instead of producing a NaN matrix; collinear or duplicate points give None instead of an
+arbitrary matrix; a point that maps to infinity raises instead of becoming (0, 0).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from planarcal import _core
+from planarcal._core import HomographyError, PointAtInfinityError
+
+# OpenCV's method constants (cv2.LMEDS, ...), with its integer values.
+LMEDS = 4
+RANSAC = 8
+RHO = 16
+USAC_DEFAULT = 32
+USAC_PARALLEL = 33
+USAC_FM_8PTS = 34
+USAC_FAST = 35
+USAC_ACCURATE = 36
+USAC_PROSAC = 37
+USAC_MAGSAC = 38
+
+ROBUST_METHODS = {
+    LMEDS: "LMEDS",
+    RANSAC: "RANSAC",
+    RHO: "RHO",
+    USAC_DEFAULT: "USAC_DEFAULT",
+    USAC_PARALLEL: "USAC_PARALLEL",
+    USAC_FM_8PTS: "USAC_FM_8PTS",
+    USAC_FAST: "USAC_FAST",
+    USAC_ACCURATE: "USAC_ACCURATE",
+    USAC_PROSAC: "USAC_PROSAC",
+    USAC_MAGSAC: "USAC_MAGSAC",
+}
+
+
+@functools.cache
+def _compat_classes() -> tuple[type[Exception], type[Exception]]:
+    """Errors that are both planarcal's and cv2.error (cv2 imported on first failure only)."""
+    import cv2
+
+    class OpenCVCompatibleError(HomographyError, cv2.error):  # type: ignore[misc]
+        """A HomographyError that is also a cv2.error, for code written against OpenCV."""
+
+    class OpenCVCompatiblePointAtInfinityError(PointAtInfinityError, OpenCVCompatibleError):
+        """A PointAtInfinityError that is also a cv2.error."""
+
+    for cls in (OpenCVCompatibleError, OpenCVCompatiblePointAtInfinityError):
+        cls.__module__ = "planarcal"
+    return OpenCVCompatibleError, OpenCVCompatiblePointAtInfinityError
+
+
+def _as_cv_error(error: HomographyError) -> Exception:
+    general, at_infinity = _compat_classes()
+    cls = at_infinity if isinstance(error, PointAtInfinityError) else general
+    return cls(*error.args)
+
+
+def findHomography(
+    srcPoints: ArrayLike,
+    dstPoints: ArrayLike,
+    method: int = 0,
+    ransacReprojThreshold: float = 3,
+    mask: NDArray[np.uint8] | None = None,
+    maxIters: int = 2000,
+    confidence: float = 0.995,
+) -> tuple[NDArray[np.float64] | None, NDArray[np.uint8]]:
+    """OpenCV's ``findHomography``: returns ``(H, mask)``, H None when no homography fits.
+
+    ``method=0`` fits all points (normalised DLT, then Levenberg-Marquardt on the transfer
+    error, as OpenCV does), in float64. The robust methods are not available yet and raise
+    ``NotImplementedError``. ``mask``, if given as a uint8 array of N elements, is filled
+    in place and returned, as OpenCV does with an output array.
+    """
+    if method != 0:
+        if method in ROBUST_METHODS:
+            raise NotImplementedError(
+                f"findHomography method {ROBUST_METHODS[method]} ({method}) is not implemented "
+                "yet; use method=0 (all points) or cv2.findHomography for robust estimation"
+            )
+        raise _as_cv_error(
+            HomographyError(f"unknown estimation method {method!r}; expected 0 or a robust flag")
+        )
+    try:
+        H, out_mask = _core.find_homography(srcPoints, dstPoints)
+    except HomographyError as e:
+        raise _as_cv_error(e) from None
+    return H, _fill_output(mask, out_mask)
+
+
+def perspectiveTransform(
+    src: ArrayLike, m: ArrayLike, dst: NDArray[Any] | None = None
+) -> NDArray[Any] | None:
+    """OpenCV's ``perspectiveTransform``: points through a 3 x 3 (or 4 x 4, 3 x 4, 4 x 3) matrix.
+
+    Returns an array of the shape and float dtype of ``src`` (float32 stays float32),
+    ``None`` for an empty input as OpenCV does. A point that maps to infinity raises
+    ``PointAtInfinityError`` (OpenCV writes (0, 0) there). ``dst``, if given with the
+    output's shape and dtype, is filled in place and returned.
+    """
+    try:
+        out = _core.perspective_transform(src, m)
+    except HomographyError as e:
+        raise _as_cv_error(e) from None
+    if out is None:
+        return None
+    return _fill_output(dst, out)
+
+
+def _fill_output(given: NDArray[Any] | None, computed: NDArray[Any]) -> NDArray[Any]:
+    """OpenCV's output-argument convention: reuse `given` when it fits, else return new."""
+    if (
+        isinstance(given, np.ndarray)
+        and given.dtype == computed.dtype
+        and given.size == computed.size
+        and given.flags.writeable
+    ):
+        given.reshape(-1)[...] = computed.reshape(-1)
+        if np.shares_memory(given.reshape(-1), given):
+            return given
+    return computed

@@ -1,0 +1,124 @@
+//! The typed errors of the core. Every failure on user input is one of these, never a panic.
+
+use std::fmt;
+
+/// Which of the two point sets of a correspondence problem an error is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PointSet {
+    Source,
+    Destination,
+}
+
+impl fmt::Display for PointSet {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            PointSet::Source => "source",
+            PointSet::Destination => "destination",
+        })
+    }
+}
+
+/// Why a homography could not be estimated or applied.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HomographyError {
+    #[error("source and destination must hold the same number of points, got {src} and {dst}")]
+    LengthMismatch { src: usize, dst: usize },
+
+    #[error("a homography needs at least 4 point correspondences, got {got}")]
+    TooFewPoints { got: usize },
+
+    #[error("{set} point {index} is not finite: ({x}, {y})")]
+    NonFinitePoint {
+        set: PointSet,
+        index: usize,
+        x: f64,
+        y: f64,
+    },
+
+    #[error("the homography matrix has a non-finite entry at row {row}, column {col}")]
+    NonFiniteMatrix { row: usize, col: usize },
+
+    #[error(
+        "only {distinct} distinct {set} points (the rest are duplicates); \
+         a homography needs at least 4 distinct points, no 3 of them on one line"
+    )]
+    TooFewDistinct { set: PointSet, distinct: usize },
+
+    #[error(
+        "all {set} points lie on one line (within {relative_deviation:.1e} of their extent); \
+         a homography needs at least 4 points, no 3 of them on one line"
+    )]
+    Collinear {
+        set: PointSet,
+        relative_deviation: f64,
+    },
+
+    #[error(
+        "all {set} points but one (point {outlier}) lie on one line (within \
+         {relative_deviation:.1e} of their extent); a homography needs at least 4 points, \
+         no 3 of them on one line"
+    )]
+    AllButOneCollinear {
+        set: PointSet,
+        outlier: usize,
+        relative_deviation: f64,
+    },
+
+    #[error(
+        "the correspondences do not determine a homography: the linear system is \
+         rank-deficient (second-smallest to largest singular value ratio {ratio:.1e})"
+    )]
+    RankDeficient { ratio: f64 },
+
+    #[error(
+        "the {solver} solver cannot resolve this problem in raw coordinates: rounding alone \
+         would perturb H by about {forward_error:.1e} (relative); use the normalized_dlt solver, \
+         which normalises the points first"
+    )]
+    IllConditioned {
+        solver: &'static str,
+        forward_error: f64,
+    },
+
+    #[error(
+        "h33 is near zero ({relative:.1e} of the scale of the data): the source origin maps \
+         (nearly) to infinity, so the a33 = 1 parametrisation cannot represent this homography; \
+         use the normalized_dlt solver"
+    )]
+    H33NearZero { relative: f64 },
+
+    #[error(
+        "the fitted homography puts source point {index} on the other side of the horizon \
+         from the rest ({behind} of {total} points): no camera sees such a plane, so the \
+         correspondences are inconsistent (outliers or mismatched order?)"
+    )]
+    MixedOrientation {
+        index: usize,
+        behind: usize,
+        total: usize,
+    },
+
+    #[error(
+        "the homography is singular (smallest to largest singular value ratio {ratio:.1e}): \
+         it collapses the plane onto a line or a point and has no inverse"
+    )]
+    Singular { ratio: f64 },
+}
+
+impl HomographyError {
+    /// True when the input is well-formed but its geometry does not determine a homography.
+    pub fn is_degenerate(&self) -> bool {
+        matches!(
+            self,
+            HomographyError::TooFewDistinct { .. }
+                | HomographyError::Collinear { .. }
+                | HomographyError::AllButOneCollinear { .. }
+                | HomographyError::RankDeficient { .. }
+                | HomographyError::H33NearZero { .. }
+                | HomographyError::MixedOrientation { .. }
+                | HomographyError::Singular { .. }
+        )
+    }
+}
+
+pub type Result<T, E = HomographyError> = std::result::Result<T, E>;

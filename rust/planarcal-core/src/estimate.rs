@@ -1,0 +1,211 @@
+//! The entry point: validate, solve with the chosen linear solver, optionally refine by
+//! Levenberg-Marquardt, check the result is a usable homography, orient and scale it.
+
+use std::fmt;
+use std::str::FromStr;
+
+use nalgebra::Matrix3;
+
+use crate::a33::{a33_least_squares, check_h33};
+use crate::correspondences::Correspondences;
+use crate::dlt::{normalized_dlt, plain_dlt};
+use crate::error::{HomographyError, Result};
+use crate::orientation::orient_and_scale;
+use crate::refine::{levenberg_marquardt, RefineReport};
+use crate::Point;
+
+/// The linear solvers, by the names the Python API uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Solver {
+    /// Hartley-normalised DLT (the default, and the start of refinement).
+    #[default]
+    NormalizedDlt,
+    /// Plain DLT on raw coordinates by SVD, ||h|| = 1.
+    Svd,
+    /// The paper's a33 = 1 linear least squares (its Eq. 4-5).
+    A33,
+}
+
+impl Solver {
+    pub const ALL: [Solver; 3] = [Solver::NormalizedDlt, Solver::Svd, Solver::A33];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Solver::NormalizedDlt => "normalized_dlt",
+            Solver::Svd => "svd",
+            Solver::A33 => "a33",
+        }
+    }
+}
+
+impl fmt::Display for Solver {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown solver {0:?}; expected one of \"normalized_dlt\", \"svd\", \"a33\"")]
+pub struct UnknownSolver(pub String);
+
+impl FromStr for Solver {
+    type Err = UnknownSolver;
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        Solver::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| UnknownSolver(s.to_owned()))
+    }
+}
+
+/// A fitted homography and what refinement did, if it ran.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// Oriented (source points at w > 0) and scaled so |h33| = 1 (see `orientation`).
+    pub h: Matrix3<f64>,
+    pub refinement: Option<RefineReport>,
+}
+
+/// |det| / ||H||_F^3 of the homography in normalised coordinates below this: singular.
+const SINGULAR_TOL: f64 = 1e-10;
+
+/// Fits H with dst ~ H src.
+pub fn estimate(src: &[Point], dst: &[Point], solver: Solver, refine: bool) -> Result<Estimate> {
+    let c = Correspondences::new(src, dst)?;
+    // Normalised-coordinate solutions stay normalised until the end, to lose no digits.
+    let hn = match solver {
+        Solver::NormalizedDlt => normalized_dlt(&c)?,
+        Solver::Svd => c.normalize_h(&plain_dlt(&c)?),
+        Solver::A33 => {
+            check_h33(&c.denormalize_h(&normalized_dlt(&c)?), &c)?;
+            let h = a33_least_squares(&c)?;
+            if !refine {
+                // The paper's matrix exactly as solved (a33 = 1), once checked.
+                check_not_singular(&c.normalize_h(&h))?;
+                return Ok(Estimate {
+                    h: orient_and_scale(&h, src)?,
+                    refinement: None,
+                });
+            }
+            c.normalize_h(&h)
+        }
+    };
+    let (hn, refinement) = if refine {
+        let (h, report) = levenberg_marquardt(&c, &hn);
+        (h, Some(report))
+    } else {
+        (hn, None)
+    };
+    check_not_singular(&hn)?;
+    let h = if solver == Solver::Svd && !refine {
+        plain_dlt(&c)?
+    } else {
+        c.denormalize_h(&hn)
+    };
+    Ok(Estimate {
+        h: orient_and_scale(&h, src)?,
+        refinement,
+    })
+}
+
+/// Fits H with dst ~ H src; see `estimate`.
+pub fn estimate_homography(
+    src: &[Point],
+    dst: &[Point],
+    solver: Solver,
+    refine: bool,
+) -> Result<Matrix3<f64>> {
+    estimate(src, dst, solver, refine).map(|e| e.h)
+}
+
+fn check_not_singular(hn: &Matrix3<f64>) -> Result<()> {
+    let norm = hn.norm();
+    let ratio = hn.determinant().abs() / (norm * norm * norm);
+    if !(ratio > SINGULAR_TOL) {
+        return Err(HomographyError::Singular { ratio });
+    }
+    Ok(())
+}
+
+/// OpenCV's convention, H[2,2] = 1; None when h33 is too small to divide by.
+pub fn with_unit_h33(h: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+    let h33 = h[(2, 2)];
+    (h33.abs() > 1e-12 * h.norm()).then(|| h / h33)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{noisy, relative_h_error, sample_problem, transfer_cost};
+
+    #[test]
+    fn solver_names_round_trip() {
+        for s in Solver::ALL {
+            assert_eq!(s.name().parse::<Solver>().unwrap(), s);
+        }
+        assert!("ransac".parse::<Solver>().is_err());
+    }
+
+    #[test]
+    fn every_solver_recovers_exact_data_with_unit_h33() {
+        let (src, dst, truth) = sample_problem(50, 300.0, 40.0);
+        for solver in Solver::ALL {
+            for refine in [false, true] {
+                let h = estimate_homography(&src, &dst, solver, refine).unwrap();
+                assert!(
+                    relative_h_error(&h, &truth) < 1e-10,
+                    "{solver} refine={refine}"
+                );
+                assert_eq!(h[(2, 2)], 1.0);
+            }
+        }
+    }
+
+    #[test]
+    fn refinement_beats_every_linear_solver_on_noisy_data() {
+        let (src, dst, _) = sample_problem(100, 600.0, 50.0);
+        let dst = noisy(&dst, 0.7, 5);
+        let gold = estimate(&src, &dst, Solver::NormalizedDlt, true).unwrap();
+        let gold_cost = transfer_cost(&gold.h, &src, &dst);
+        for solver in Solver::ALL {
+            let linear = estimate_homography(&src, &dst, solver, false).unwrap();
+            assert!(gold_cost <= transfer_cost(&linear, &src, &dst), "{solver}");
+            let refined = estimate_homography(&src, &dst, solver, true).unwrap();
+            let cost = transfer_cost(&refined, &src, &dst);
+            assert!((cost - gold_cost).abs() <= 1e-9 * gold_cost, "{solver}");
+        }
+        let report = gold.refinement.unwrap();
+        assert!(report.final_cost <= report.initial_cost);
+    }
+
+    #[test]
+    fn degenerate_inputs_get_typed_errors() {
+        let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let line = [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]];
+        for solver in Solver::ALL {
+            assert!(matches!(
+                estimate_homography(&square, &line, solver, false),
+                Err(HomographyError::Collinear { .. })
+            ));
+        }
+        // Source points on both sides of the horizon of the homography they imply.
+        let src = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]];
+        let dst = [
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.0, 1.0],
+            [0.0, 1.0],
+            [-40.0, -40.0],
+        ];
+        let err = estimate_homography(&src, &dst, Solver::NormalizedDlt, false).unwrap_err();
+        assert!(err.is_degenerate(), "{err}");
+    }
+
+    #[test]
+    fn unit_h33_convention() {
+        let h = Matrix3::new(2.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, -2.0);
+        assert_eq!(with_unit_h33(&h).unwrap()[(2, 2)], 1.0);
+        let h = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
+        assert!(with_unit_h33(&h).is_none());
+    }
+}

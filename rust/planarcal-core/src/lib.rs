@@ -1,0 +1,32 @@
+//! planarcal-core: planar homography estimation and batch point mapping in pure Rust.
+//!
+//! The pipeline, one module an idea: `correspondences` validates a problem and normalises it
+//! (`normalize`), rejecting geometry that cannot determine a homography (`degeneracy`); a
+//! linear solver fits H (`dlt`: normalised DLT and plain SVD DLT; `a33`: the paper's a33 = 1
+//! least squares); `refine` polishes it by Levenberg-Marquardt; `orientation` fixes its sign
+//! and scale. `transform` maps points through it in batches and `reprojection` measures the
+//! fit. `estimate` ties these together. Everything is f64; nothing panics on user input.
+
+pub mod a33;
+pub mod correspondences;
+pub mod degeneracy;
+pub mod dlt;
+pub mod error;
+pub mod estimate;
+pub mod normalize;
+pub mod orientation;
+pub mod refine;
+pub mod reprojection;
+pub mod transform;
+
+#[cfg(test)]
+mod testing;
+
+/// A 2-D point (x, y).
+pub type Point = [f64; 2];
+
+pub use error::{HomographyError, PointSet, Result};
+pub use estimate::{estimate, estimate_homography, with_unit_h33, Estimate, Solver, UnknownSolver};
+pub use refine::RefineReport;
+pub use reprojection::{reprojection_errors_into, ErrorStats};
+pub use transform::{invert, Homography, Orientation, PointStatus, Projective, TransformReport};

@@ -1,0 +1,117 @@
+//! Reprojection errors (the paper's Eq. 6), e_i = || dst_i - H src_i ||, and their statistics
+//! (mean, its Eq. 7; RMS; max; min). A source point with no image has an infinite error.
+
+use nalgebra::Matrix3;
+
+use crate::error::{HomographyError, Result};
+use crate::transform::{map_indexed, Homography, Orientation, PointStatus, TransformReport};
+use crate::Point;
+
+/// Per-point errors into `out`; +inf where the source point has no image (see the report).
+pub fn reprojection_errors_into(
+    h: &Matrix3<f64>,
+    src: &[Point],
+    dst: &[Point],
+    out: &mut [f64],
+    orientation: Orientation,
+) -> Result<TransformReport> {
+    if src.len() != dst.len() || out.len() != src.len() {
+        return Err(HomographyError::LengthMismatch {
+            src: src.len(),
+            dst: dst.len(),
+        });
+    }
+    let t = Homography::from_matrix(h)?;
+    Ok(map_indexed(out, f64::INFINITY, |i| {
+        let d = &dst[i];
+        if !(d[0].is_finite() && d[1].is_finite()) {
+            return Err(PointStatus::NonFinite);
+        }
+        let p = t.apply(&src[i], orientation)?;
+        Ok((p[0] - d[0]).hypot(p[1] - d[1]))
+    }))
+}
+
+/// Summary statistics of a set of errors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ErrorStats {
+    pub count: usize,
+    pub mean: f64,
+    pub rms: f64,
+    pub max: f64,
+    pub min: f64,
+    pub argmax: usize,
+    pub argmin: usize,
+}
+
+impl ErrorStats {
+    /// None for an empty set.
+    pub fn of(errors: &[f64]) -> Option<Self> {
+        let first = *errors.first()?;
+        let mut s = ErrorStats {
+            count: errors.len(),
+            mean: 0.0,
+            rms: 0.0,
+            max: first,
+            min: first,
+            argmax: 0,
+            argmin: 0,
+        };
+        let (mut sum, mut sum_sq) = (0.0, 0.0);
+        for (i, &e) in errors.iter().enumerate() {
+            sum += e;
+            sum_sq += e * e;
+            if e > s.max {
+                s.max = e;
+                s.argmax = i;
+            }
+            if e < s.min {
+                s.min = e;
+                s.argmin = i;
+            }
+        }
+        let n = errors.len() as f64;
+        s.mean = sum / n;
+        s.rms = (sum_sq / n).sqrt();
+        Some(s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_are_euclidean_distances() {
+        let h = Matrix3::new(1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+        let src = [[0.0, 0.0], [1.0, 1.0]];
+        let dst = [[4.0, 4.0], [2.0, 1.0]];
+        let mut e = [0.0; 2];
+        let r = reprojection_errors_into(&h, &src, &dst, &mut e, Orientation::Oriented).unwrap();
+        assert_eq!(r.invalid(), 0);
+        assert_eq!(e, [5.0, 0.0]);
+        let s = ErrorStats::of(&e).unwrap();
+        assert_eq!(
+            (s.mean, s.max, s.min, s.argmax, s.argmin),
+            (2.5, 5.0, 0.0, 0, 1)
+        );
+        assert!((s.rms - (12.5f64).sqrt()).abs() < 1e-15);
+        assert!(ErrorStats::of(&[]).is_none());
+    }
+
+    #[test]
+    fn points_without_an_image_have_infinite_error() {
+        let h = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0, 1.0);
+        let mut e = [0.0; 2];
+        let r = reprojection_errors_into(
+            &h,
+            &[[0.0, 0.0], [1.0, 0.0]],
+            &[[0.0, 0.0], [0.0, 0.0]],
+            &mut e,
+            Orientation::Oriented,
+        )
+        .unwrap();
+        assert_eq!(e, [0.0, f64::INFINITY]);
+        assert_eq!(r.first, Some((1, PointStatus::AtInfinity)));
+    }
+}

@@ -1,0 +1,30 @@
+//! planarcal._core: the bindings of planarcal-core. Each function validates its arguments,
+//! borrows NumPy buffers without copying, releases the GIL for large work, and returns NumPy
+//! arrays it allocated itself. The public API and its documentation live in Python.
+
+mod convert;
+mod errors;
+mod estimate;
+mod reprojection;
+mod transform;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("HomographyError", py.get_type::<errors::HomographyError>())?;
+    m.add("DegenerateError", py.get_type::<errors::DegenerateError>())?;
+    m.add(
+        "PointAtInfinityError",
+        py.get_type::<errors::PointAtInfinityError>(),
+    )?;
+    m.add_function(wrap_pyfunction!(estimate::estimate_homography, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate::find_homography, m)?)?;
+    m.add_function(wrap_pyfunction!(transform::transform_points, m)?)?;
+    m.add_function(wrap_pyfunction!(transform::perspective_transform, m)?)?;
+    m.add_function(wrap_pyfunction!(reprojection::reprojection_errors, m)?)?;
+    m.add_function(wrap_pyfunction!(reprojection::error_stats, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,69 @@
+//! Reprojection errors (Eq. 6) and their statistics (Eq. 7, RMS, max, min).
+
+use numpy::{PyArray1, PyArrayMethods};
+use planarcal_core::{reprojection_errors_into, ErrorStats, Orientation};
+use pyo3::prelude::*;
+
+use crate::convert::{matrix3, points2};
+use crate::errors::{no_image, to_py};
+use crate::transform::{maybe_detach, on_invalid, OnInvalid};
+
+/// reprojection_errors(h, src, dst, invalid="raise")
+/// --
+///
+/// Per-point || dst_i - H src_i || (N, float64, destination units); no-image points raise or are inf.
+#[pyfunction]
+#[pyo3(signature = (h, src, dst, invalid = "raise"))]
+pub fn reprojection_errors<'py>(
+    py: Python<'py>,
+    h: &Bound<'py, PyAny>,
+    src: &Bound<'py, PyAny>,
+    dst: &Bound<'py, PyAny>,
+    invalid: &str,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let mode = on_invalid(invalid, "inf")?;
+    let m = matrix3(h, "h")?;
+    let (s, d) = (points2(src, "src")?, points2(dst, "dst")?);
+    let (s, d) = (s.as_points(), d.as_points());
+    let n = s.len();
+    if d.len() != n {
+        return Err(to_py(planarcal_core::HomographyError::LengthMismatch {
+            src: n,
+            dst: d.len(),
+        }));
+    }
+    // SAFETY: fresh C-contiguous array, fully written by reprojection_errors_into below.
+    let out = unsafe { PyArray1::<f64>::new(py, [n], false) };
+    let report = {
+        let slice =
+            unsafe { out.as_slice_mut() }.map_err(|e| crate::errors::invalid(e.to_string()))?;
+        maybe_detach(py, n, || {
+            reprojection_errors_into(&m, s, d, slice, Orientation::Oriented)
+        })
+        .map_err(to_py)?
+    };
+    if mode == OnInvalid::Raise && report.invalid() > 0 {
+        return Err(no_image(&report, n, "source points"));
+    }
+    Ok(out)
+}
+
+/// error_stats(errors)
+/// --
+///
+/// (count, mean, rms, max, min, argmax, argmin) of a 1-D array of errors.
+#[pyfunction]
+pub fn error_stats(
+    errors: &Bound<'_, PyAny>,
+) -> PyResult<(usize, f64, f64, f64, f64, usize, usize)> {
+    let arg = crate::convert::f64_array(errors, "errors")?;
+    if arg.shape.len() != 1 {
+        return Err(crate::errors::invalid(format!(
+            "errors must be one-dimensional, got shape {:?}",
+            arg.shape
+        )));
+    }
+    let s = ErrorStats::of(arg.values.as_slice())
+        .ok_or_else(|| crate::errors::invalid("errors is empty: no statistics to report"))?;
+    Ok((s.count, s.mean, s.rms, s.max, s.min, s.argmax, s.argmin))
+}
