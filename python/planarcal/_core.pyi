@@ -4,6 +4,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+__all__ = [
+    "DegenerateError",
+    "HomographyError",
+    "PointAtInfinityError",
+    "__version__",
+    "error_stats",
+    "estimate_homography",
+    "find_homography",
+    "perspective_transform",
+    "reprojection_errors",
+    "transform_points",
+]
 __version__: str
 
 class HomographyError(ValueError): ...

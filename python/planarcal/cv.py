@@ -53,7 +53,7 @@ def _compat_classes() -> tuple[type[Exception], type[Exception]]:
     """Errors that are both planarcal's and cv2.error (cv2 imported on first failure only)."""
     import cv2
 
-    class OpenCVCompatibleError(HomographyError, cv2.error):  # type: ignore[misc]
+    class OpenCVCompatibleError(HomographyError, cv2.error):
         """A HomographyError that is also a cv2.error, for code written against OpenCV."""
 
     class OpenCVCompatiblePointAtInfinityError(PointAtInfinityError, OpenCVCompatibleError):

@@ -56,6 +56,10 @@ def transform_points(
 
     A point that maps to infinity or behind the horizon (w <= 0 under the oriented H) raises
     ``PointAtInfinityError`` naming it; with ``invalid="nan"`` it becomes a NaN row instead.
+    H is taken as oriented, as ``estimate_homography`` returns it. A matrix scaled by OpenCV's
+    H[2,2] = 1 convention is oriented too unless the source origin lies beyond the horizon;
+    then every point reports as behind it and the message says so (pass -H). For matrices of
+    unknown sign, ``perspectiveTransform`` reports only points at infinity.
     """
     return _core.transform_points(H, points, inverse, invalid)
 
@@ -78,7 +82,8 @@ def reprojection_errors(
 class ReprojectionStats(NamedTuple):
     """Statistics of the reprojection errors, in destination units."""
 
-    count: int
+    n: int
+    """Number of points."""
     mean: float
     """Mean error, the paper's Eq. 7."""
     rms: float

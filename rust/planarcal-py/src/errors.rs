@@ -54,8 +54,16 @@ pub fn no_image(report: &TransformReport, total: usize, what: &str) -> PyErr {
         .first
         .map(|(i, s)| format!("; the first is point {i}, which {}", s.describe()))
         .unwrap_or_default();
+    // Every point behind: almost surely a reversed sign, not a camera looking backwards.
+    let hint = if total > 0 && report.behind_horizon == total {
+        ". Every point is behind the horizon, so the sign of H is probably reversed: OpenCV's \
+         H[2,2] = 1 scaling reverses it when the source origin lies beyond the horizon. Pass -H, \
+         or use the H that estimate_homography returns (oriented so its points are in front)"
+    } else {
+        ""
+    };
     PointAtInfinityError::new_err(format!(
-        "{} of {total} {what} have no image under this homography ({}){first}",
+        "{} of {total} {what} have no image under this homography ({}){first}{hint}",
         report.invalid(),
         parts.join(", "),
     ))

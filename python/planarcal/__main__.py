@@ -1,0 +1,7 @@
+"""`python -m planarcal` runs the command line."""
+
+import sys
+
+from planarcal.cli import main
+
+sys.exit(main())

@@ -1,0 +1,29 @@
+"""Shared fixtures: the paper's tables (from ../shared, skipped where absent) and the
+hypothesis profile."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+settings.register_profile(
+    "default",
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.load_profile("default")
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+
+
+@pytest.fixture(scope="session")
+def paper_tables() -> dict[str, Any]:
+    path = SHARED / "paper" / "paper_tables.json"
+    if not path.exists():
+        pytest.skip(f"the paper's tables are not here ({path}): ../shared is absent")
+    data: dict[str, Any] = json.loads(path.read_text())
+    return data
