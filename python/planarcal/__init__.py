@@ -9,6 +9,9 @@ A Rust core (homography solvers, refinement, batch transforms) with two Python f
   shapes, dtypes and method constants, computed in float64.
 """
 
+import os as _os
+
+from planarcal import _core
 from planarcal._core import (
     DegenerateError,
     HomographyError,
@@ -39,6 +42,11 @@ from planarcal.homography import (
     reprojection_stats,
     transform_points,
 )
+
+# A child forked after the thread pool started must not use it (its threads did not survive
+# the fork): the core then runs every batch on the calling thread.
+if hasattr(_os, "register_at_fork"):
+    _os.register_at_fork(after_in_child=_core._after_fork_in_child)
 
 __all__ = [
     "LMEDS",

@@ -9,6 +9,7 @@ __all__ = [
     "HomographyError",
     "PointAtInfinityError",
     "__version__",
+    "_after_fork_in_child",
     "error_stats",
     "estimate_homography",
     "find_homography",
@@ -36,3 +37,4 @@ def reprojection_errors(
     h: ArrayLike, src: ArrayLike, dst: ArrayLike, invalid: str = "raise"
 ) -> NDArray[np.float64]: ...
 def error_stats(errors: ArrayLike) -> tuple[int, float, float, float, float, int, int]: ...
+def _after_fork_in_child() -> None: ...

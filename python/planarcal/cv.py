@@ -13,7 +13,7 @@ arbitrary matrix; a point that maps to infinity raises instead of becoming (0, 0
 
 from __future__ import annotations
 
-import functools
+import threading
 from typing import Any
 
 import numpy as np
@@ -48,26 +48,44 @@ ROBUST_METHODS = {
 }
 
 
-@functools.cache
-def _compat_classes() -> tuple[type[Exception], type[Exception]]:
-    """Errors that are both planarcal's and cv2.error (cv2 imported on first failure only)."""
-    import cv2
+_compat_lock = threading.Lock()
+_compat: dict[str, type[Exception]] = {}
 
-    class OpenCVCompatibleError(HomographyError, cv2.error):
-        """A HomographyError that is also a cv2.error, for code written against OpenCV."""
 
-    class OpenCVCompatiblePointAtInfinityError(PointAtInfinityError, OpenCVCompatibleError):
-        """A PointAtInfinityError that is also a cv2.error."""
+def _compat_classes() -> dict[str, type[Exception]]:
+    """The errors that are both planarcal's and a cv2.error, made once (thread-safely) on the
+    first failure, so importing planarcal does not import cv2. They live in this module under
+    their own names (see __getattr__), so they pickle to and from worker processes."""
+    with _compat_lock:
+        if not _compat:
+            import cv2
 
-    for cls in (OpenCVCompatibleError, OpenCVCompatiblePointAtInfinityError):
-        cls.__module__ = "planarcal"
-    return OpenCVCompatibleError, OpenCVCompatiblePointAtInfinityError
+            class OpenCVCompatibleError(HomographyError, cv2.error):
+                """A HomographyError that is also a cv2.error, for code written for OpenCV."""
+
+            class OpenCVCompatiblePointAtInfinityError(PointAtInfinityError, OpenCVCompatibleError):
+                """A PointAtInfinityError that is also a cv2.error."""
+
+            for cls in (OpenCVCompatibleError, OpenCVCompatiblePointAtInfinityError):
+                # Where pickle looks them up: planarcal.cv.<name>, served by __getattr__.
+                cls.__module__ = __name__
+                cls.__qualname__ = cls.__name__
+                _compat[cls.__name__] = cls
+    return _compat
+
+
+def __getattr__(name: str) -> type[Exception]:
+    """PEP 562: the OpenCV-compatible error classes, created on first access."""
+    if name in ("OpenCVCompatibleError", "OpenCVCompatiblePointAtInfinityError"):
+        return _compat_classes()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _as_cv_error(error: HomographyError) -> Exception:
-    general, at_infinity = _compat_classes()
-    cls = at_infinity if isinstance(error, PointAtInfinityError) else general
-    return cls(*error.args)
+    classes = _compat_classes()
+    if isinstance(error, PointAtInfinityError):
+        return classes["OpenCVCompatiblePointAtInfinityError"](*error.args)
+    return classes["OpenCVCompatibleError"](*error.args)
 
 
 def findHomography(
@@ -116,8 +134,8 @@ def perspectiveTransform(
         out = _core.perspective_transform(src, m)
     except HomographyError as e:
         raise _as_cv_error(e) from None
-    if out is None:
-        return None
+    if dst is None or out is None:
+        return out
     return _fill_output(dst, out)
 
 

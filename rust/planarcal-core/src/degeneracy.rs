@@ -24,42 +24,28 @@ fn eig2(a: f64, b: f64, c: f64) -> (f64, f64) {
 /// Largest distance of the points (all but `skip`) from their total-least-squares line,
 /// relative to their RMS distance from their centroid. Zero when they all coincide.
 pub fn line_deviation(points: &[Point], skip: Option<usize>) -> f64 {
-    let kept = || {
-        points
-            .iter()
-            .enumerate()
-            .filter(move |(i, _)| Some(*i) != skip)
-            .map(|(_, p)| p)
-    };
-    let m = kept().count();
-    if m < 2 {
+    let kept: Vec<Point> = points
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| Some(*i) != skip)
+        .map(|(_, p)| *p)
+        .collect();
+    if kept.len() < 2 {
         return 0.0;
     }
-    let (mut cx, mut cy) = (0.0, 0.0);
-    for p in kept() {
-        cx += p[0];
-        cy += p[1];
-    }
-    cx /= m as f64;
-    cy /= m as f64;
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in kept() {
-        let (ux, uy) = (p[0] - cx, p[1] - cy);
-        sxx += ux * ux;
-        sxy += ux * uy;
-        syy += uy * uy;
-    }
-    let rms = ((sxx + syy) / m as f64).sqrt();
+    let stats = PointStats::of(&kept);
+    let rms = stats.mean_sq().sqrt();
     if !(rms > 0.0) {
         return 0.0;
     }
-    // Direction of the principal axis; the deviation is measured along its normal.
-    let theta = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    // Direction of the principal axis; the deviation is measured along its normal, in units.
+    let theta = 0.5 * (2.0 * stats.sxy).atan2(stats.sxx - stats.syy);
     let (nx, ny) = (-theta.sin(), theta.cos());
-    let mut worst: f64 = 0.0;
-    for p in kept() {
-        worst = worst.max((nx * (p[0] - cx) + ny * (p[1] - cy)).abs());
-    }
+    let ([cx, cy], inv) = (stats.centroid, 1.0 / stats.unit);
+    let worst = kept
+        .iter()
+        .map(|p| (nx * ((p[0] - cx) * inv) + ny * ((p[1] - cy) * inv)).abs())
+        .fold(0.0, f64::max);
     worst / rms
 }
 
@@ -77,10 +63,10 @@ fn all_but_one_candidate(points: &[Point], stats: &PointStats) -> Option<usize> 
     if lmin > c * stats.max_sq * (1.0 + 1e-9) {
         return None;
     }
-    let [cx, cy] = stats.centroid;
+    let ([cx, cy], inv) = (stats.centroid, 1.0 / stats.unit);
     let mut best = (f64::INFINITY, 0);
     for (i, p) in points.iter().enumerate() {
-        let (ux, uy) = (p[0] - cx, p[1] - cy);
+        let (ux, uy) = ((p[0] - cx) * inv, (p[1] - cy) * inv);
         let (a, b, d) = (
             stats.sxx - c * ux * ux,
             stats.sxy - c * ux * uy,
@@ -115,20 +101,24 @@ pub fn count_distinct(points: &[Point]) -> usize {
     distinct_points(points).len()
 }
 
-/// Twice the signed area of the triangle (u, v, p): |uv| times the distance of p from line uv.
-fn cross(u: &Point, v: &Point, p: &Point) -> f64 {
-    (v[0] - u[0]) * (p[1] - u[1]) - (v[1] - u[1]) * (p[0] - u[0])
+/// Twice the signed area of the triangle (u, v, p), |uv| times the distance of p from line
+/// uv, with lengths in units of 1 / inv (so it neither overflows nor underflows).
+fn cross(u: &Point, v: &Point, p: &Point, inv: f64) -> f64 {
+    let (ax, ay) = ((v[0] - u[0]) * inv, (v[1] - u[1]) * inv);
+    let (bx, by) = ((p[0] - u[0]) * inv, (p[1] - u[1]) * inv);
+    ax * by - ay * bx
 }
 
 /// Relative margin by which fast acceptance wants the 4 points away from collinear.
 const MARGIN: f64 = 1e-6;
 
-/// True when no three of the four points are within MARGIN (relative) of a line.
-fn clear_quadruple(q: [&Point; 4], scale2: f64) -> bool {
+/// True when no three of the four points are within MARGIN (relative to scale2, a squared
+/// length in units) of a line.
+fn clear_quadruple(q: [&Point; 4], scale2: f64, inv: f64) -> bool {
     const TRIPLES: [(usize, usize, usize); 4] = [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)];
     TRIPLES
         .iter()
-        .all(|&(i, j, k)| cross(q[i], q[j], q[k]).abs() > MARGIN * scale2)
+        .all(|&(i, j, k)| cross(q[i], q[j], q[k], inv).abs() > MARGIN * scale2)
 }
 
 /// Fastest acceptance, in constant time: 4 in general position among 8 points sampled at
@@ -147,12 +137,12 @@ pub fn samples_in_general_position(points: &[Point], stats: &PointStats) -> bool
             n += 1;
         }
     }
-    let scale2 = 4.0 * stats.max_sq;
+    let (scale2, inv) = (4.0 * stats.max_sq, 1.0 / stats.unit);
     for a in 0..n {
         for b in a + 1..n {
             for c in b + 1..n {
                 for d in c + 1..n {
-                    if clear_quadruple([cand[a], cand[b], cand[c], cand[d]], scale2) {
+                    if clear_quadruple([cand[a], cand[b], cand[c], cand[d]], scale2, inv) {
                         return true;
                     }
                 }
@@ -167,9 +157,11 @@ pub fn samples_in_general_position(points: &[Point], stats: &PointStats) -> bool
 /// farthest from all three sides) in O(n). True means the set is certainly fine; false means
 /// the exact check has to decide.
 pub fn has_clear_general_position(points: &[Point], stats: &PointStats) -> bool {
-    if samples_in_general_position(points, stats) {
-        return true;
-    }
+    samples_in_general_position(points, stats) || greedy_general_position(points, stats)
+}
+
+/// The greedy O(n) search of `has_clear_general_position`.
+fn greedy_general_position(points: &[Point], stats: &PointStats) -> bool {
     /// The point maximising `score`, scanned once (no division in the loop).
     fn argmax(points: &[Point], score: impl Fn(&Point) -> f64) -> (Point, f64) {
         let mut best = ([0.0; 2], f64::NEG_INFINITY);
@@ -181,7 +173,10 @@ pub fn has_clear_general_position(points: &[Point], stats: &PointStats) -> bool 
         }
         best
     }
-    let dist2 = |p: &Point, q: &Point| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+    // Lengths in units of stats.unit, so nothing overflows or underflows.
+    let inv = 1.0 / stats.unit;
+    let dist2 =
+        |p: &Point, q: &Point| ((p[0] - q[0]) * inv).powi(2) + ((p[1] - q[1]) * inv).powi(2);
     let Some(&a) = points.get(stats.argmax) else {
         return false;
     };
@@ -190,7 +185,7 @@ pub fn has_clear_general_position(points: &[Point], stats: &PointStats) -> bool 
     if !(ab > 0.0) {
         return false;
     }
-    let (c, cab) = argmax(points, |p| cross(&a, &b, p).abs());
+    let (c, cab) = argmax(points, |p| cross(&a, &b, p, inv).abs());
     // c is off line ab by more than MARGIN * |ab|.
     if !(cab > MARGIN * ab * ab) {
         return false;
@@ -198,7 +193,9 @@ pub fn has_clear_general_position(points: &[Point], stats: &PointStats) -> bool 
     let (bc, ca) = (dist2(&b, &c).sqrt(), dist2(&c, &a).sqrt());
     let (ta, tb, tc) = (MARGIN * ab * ab, MARGIN * ab * bc, MARGIN * ab * ca);
     points.iter().any(|p| {
-        cross(&a, &b, p).abs() > ta && cross(&b, &c, p).abs() > tb && cross(&c, &a, p).abs() > tc
+        cross(&a, &b, p, inv).abs() > ta
+            && cross(&b, &c, p, inv).abs() > tb
+            && cross(&c, &a, p, inv).abs() > tc
     })
 }
 
@@ -340,7 +337,8 @@ mod tests {
         assert!(samples_in_general_position(&grid, &PointStats::of(&grid)));
         assert!(has_clear_general_position(&grid, &PointStats::of(&grid)));
         assert!(check(&grid).is_ok());
-        // Points on the three sides of a triangle: no greedy fourth point, yet fine.
+        // Points on the three sides of a triangle: no greedy fourth point, yet fine (and the
+        // sampled quadruples find (4,0), (0,4), (2,0), (0,2)).
         let sides = [
             [0.0, 0.0],
             [4.0, 0.0],
@@ -349,8 +347,19 @@ mod tests {
             [2.0, 2.0],
             [0.0, 2.0],
         ];
-        assert!(!has_clear_general_position(&sides, &PointStats::of(&sides)));
+        assert!(!greedy_general_position(&sides, &PointStats::of(&sides)));
+        assert!(samples_in_general_position(&sides, &PointStats::of(&sides)));
         assert!(check(&sides).is_ok());
+        // Duplicates hide the fourth point from the samples; the greedy search finds it.
+        let mut dup: Vec<Point> = [[0.0, 0.0]; 50]
+            .into_iter()
+            .chain([[9.0, 1.0]; 50])
+            .chain([[2.0, 7.0]; 50])
+            .collect();
+        dup.insert(75, [6.0, 6.0]);
+        assert!(!samples_in_general_position(&dup, &PointStats::of(&dup)));
+        assert!(greedy_general_position(&dup, &PointStats::of(&dup)));
+        assert!(check(&dup).is_ok());
         let line: Vec<Point> = (0..9).map(|i| [i as f64, 3.0 * i as f64]).collect();
         assert!(!has_clear_general_position(&line, &PointStats::of(&line)));
     }

@@ -45,6 +45,18 @@ pub enum HomographyError {
     TooFewDistinct { set: PointSet, distinct: usize },
 
     #[error(
+        "the homography between these point sets cannot be represented in double precision: \
+         their scales differ so much that its entries would overflow; rescale the coordinates"
+    )]
+    Unrepresentable,
+
+    #[error(
+        "the {set} points' spread ({spread:.1e}) is beyond what floating point can normalise; \
+         rescale the coordinates"
+    )]
+    SpreadOutOfRange { set: PointSet, spread: f64 },
+
+    #[error(
         "all {set} points lie on one line (within {relative_deviation:.1e} of their extent); \
          a homography needs at least 4 points, no 3 of them on one line"
     )]

@@ -10,7 +10,7 @@ use crate::a33::{a33_least_squares, check_h33};
 use crate::correspondences::Correspondences;
 use crate::dlt::{normalized_dlt, plain_dlt};
 use crate::error::{HomographyError, Result};
-use crate::orientation::orient_and_scale;
+use crate::orientation::{frobenius, orient_and_scale};
 use crate::refine::{levenberg_marquardt, RefineReport};
 use crate::Point;
 
@@ -69,38 +69,55 @@ pub struct Estimate {
 /// |det| / ||H||_F^3 of the homography in normalised coordinates below this: singular.
 const SINGULAR_TOL: f64 = 1e-10;
 
+/// The raw-coordinate solvers (svd, a33) refuse when rounding alone would perturb their
+/// answer by more than this (relative): a final answer must be good to 1e-4...
+const LINEAR_MAX_FORWARD_ERROR: f64 = 1e-4;
+/// ...while a start for refinement only has to be in the optimum's basin.
+const START_MAX_FORWARD_ERROR: f64 = 1e-2;
+
+/// A linear fit, in normalised coordinates or in the caller's.
+enum Fit {
+    Normalized(Matrix3<f64>),
+    Raw(Matrix3<f64>),
+}
+
 /// Fits H with dst ~ H src.
 pub fn estimate(src: &[Point], dst: &[Point], solver: Solver, refine: bool) -> Result<Estimate> {
     let c = Correspondences::new(src, dst)?;
-    // Normalised-coordinate solutions stay normalised until the end, to lose no digits.
-    let hn = match solver {
-        Solver::NormalizedDlt => normalized_dlt(&c)?,
-        Solver::Svd => c.normalize_h(&plain_dlt(&c)?),
+    let tol = if refine {
+        START_MAX_FORWARD_ERROR
+    } else {
+        LINEAR_MAX_FORWARD_ERROR
+    };
+    let fit = match solver {
+        Solver::NormalizedDlt => Fit::Normalized(normalized_dlt(&c)?),
+        Solver::Svd => Fit::Raw(plain_dlt(&c, tol)?),
         Solver::A33 => {
             check_h33(&c.denormalize_h(&normalized_dlt(&c)?), &c)?;
-            let h = a33_least_squares(&c)?;
-            if !refine {
-                // The paper's matrix exactly as solved (a33 = 1), once checked.
-                check_not_singular(&c.normalize_h(&h))?;
-                return Ok(Estimate {
-                    h: orient_and_scale(&h, src)?,
-                    refinement: None,
-                });
-            }
-            c.normalize_h(&h)
+            Fit::Raw(a33_least_squares(&c, tol)?)
         }
     };
-    let (hn, refinement) = if refine {
-        let (h, report) = levenberg_marquardt(&c, &hn);
-        (h, Some(report))
+    let (h, refinement) = if refine {
+        let hn = match fit {
+            Fit::Normalized(hn) => hn,
+            Fit::Raw(h) => c.normalize_h(&h),
+        };
+        let (hn, report) = levenberg_marquardt(&c, &hn);
+        check_not_singular(&hn)?;
+        (denormalize(&c, &hn)?, Some(report))
     } else {
-        (hn, None)
-    };
-    check_not_singular(&hn)?;
-    let h = if solver == Solver::Svd && !refine {
-        plain_dlt(&c)?
-    } else {
-        c.denormalize_h(&hn)
+        // A raw fit is returned as solved (the paper's a33 = 1 matrix exactly), once checked.
+        let h = match fit {
+            Fit::Normalized(hn) => {
+                check_not_singular(&hn)?;
+                denormalize(&c, &hn)?
+            }
+            Fit::Raw(h) => {
+                check_not_singular(&c.normalize_h(&h))?;
+                h
+            }
+        };
+        (h, None)
     };
     Ok(Estimate {
         h: orient_and_scale(&h, src)?,
@@ -118,6 +135,19 @@ pub fn estimate_homography(
     estimate(src, dst, solver, refine).map(|e| e.h)
 }
 
+/// H in the caller's coordinates, checked to be the normalised fit still: when the two point
+/// sets' scales differ by more than f64's range, H's entries overflow or underflow.
+fn denormalize(c: &Correspondences, hn: &Matrix3<f64>) -> Result<Matrix3<f64>> {
+    let h = c.denormalize_h(hn);
+    let (back, fit) = (c.normalize_h(&h), hn / frobenius(hn));
+    let back = back / frobenius(&back);
+    let drift = (back - fit).norm().min((back + fit).norm());
+    if !(drift < 1e-8) {
+        return Err(HomographyError::Unrepresentable);
+    }
+    Ok(h)
+}
+
 fn check_not_singular(hn: &Matrix3<f64>) -> Result<()> {
     let norm = hn.norm();
     let ratio = hn.determinant().abs() / (norm * norm * norm);
@@ -127,10 +157,14 @@ fn check_not_singular(hn: &Matrix3<f64>) -> Result<()> {
     Ok(())
 }
 
-/// OpenCV's convention, H[2,2] = 1; None when h33 is too small to divide by.
+/// An estimate in OpenCV's convention, H[2,2] = 1 (the sign flipped if need be); None when
+/// `estimate` found h33 negligible (it then scales H to unit norm instead of |h33| = 1).
 pub fn with_unit_h33(h: &Matrix3<f64>) -> Option<Matrix3<f64>> {
-    let h33 = h[(2, 2)];
-    (h33.abs() > 1e-12 * h.norm()).then(|| h / h33)
+    match h[(2, 2)] {
+        1.0 => Some(*h),
+        -1.0 => Some(-h),
+        _ => None,
+    }
 }
 
 #[cfg(test)]
@@ -202,10 +236,39 @@ mod tests {
     }
 
     #[test]
+    fn any_magnitude_of_coordinates_is_fitted() {
+        let (src, dst, _) = sample_problem(12, 1.0, 0.5);
+        for s in [1e-250, 1e-100, 1.0, 1e100, 1e250] {
+            for d in [1e-250, 1.0, 1e250] {
+                let src: Vec<Point> = src.iter().map(|p| [p[0] * s, p[1] * s]).collect();
+                let dst: Vec<Point> = dst.iter().map(|p| [p[0] * d, p[1] * d]).collect();
+                if (d / s).log10().abs() > 300.0 || !(d / s).is_finite() {
+                    // Entries of H would span 1e500: no f64 matrix holds that.
+                    assert_eq!(
+                        estimate_homography(&src, &dst, Solver::NormalizedDlt, false),
+                        Err(HomographyError::Unrepresentable)
+                    );
+                    continue;
+                }
+                for refine in [false, true] {
+                    let h = estimate_homography(&src, &dst, Solver::NormalizedDlt, refine)
+                        .unwrap_or_else(|e| panic!("scales {s:e} -> {d:e}: {e}"));
+                    assert_eq!(h[(2, 2)], 1.0);
+                    for (p, q) in src.iter().zip(&dst) {
+                        let w = h[(2, 0)] * p[0] + h[(2, 1)] * p[1] + h[(2, 2)];
+                        let x = (h[(0, 0)] * p[0] + h[(0, 1)] * p[1] + h[(0, 2)]) / w;
+                        assert!(((x - q[0]) / d).abs() < 1e-10, "scales {s:e} -> {d:e}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn unit_h33_convention() {
-        let h = Matrix3::new(2.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, -2.0);
-        assert_eq!(with_unit_h33(&h).unwrap()[(2, 2)], 1.0);
-        let h = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
+        let h = Matrix3::new(2.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, -1.0);
+        assert_eq!(with_unit_h33(&h).unwrap(), -h);
+        let h = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1e-20);
         assert!(with_unit_h33(&h).is_none());
     }
 }

@@ -5,7 +5,8 @@
 //! linear solver fits H (`dlt`: normalised DLT and plain SVD DLT; `a33`: the paper's a33 = 1
 //! least squares); `refine` polishes it by Levenberg-Marquardt; `orientation` fixes its sign
 //! and scale. `transform` maps points through it in batches and `reprojection` measures the
-//! fit. `estimate` ties these together. Everything is f64; nothing panics on user input.
+//! fit; `threads` keeps them off the thread pool in forked children. `estimate` ties these
+//! together. Everything is f64; nothing panics on user input.
 
 pub mod a33;
 pub mod correspondences;
@@ -17,6 +18,7 @@ pub mod normalize;
 pub mod orientation;
 pub mod refine;
 pub mod reprojection;
+pub mod threads;
 pub mod transform;
 
 #[cfg(test)]

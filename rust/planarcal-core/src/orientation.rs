@@ -12,12 +12,24 @@ use crate::Point;
 /// |h33| below this fraction of the largest |w| over the data is treated as zero.
 const H33_NEGLIGIBLE: f64 = 1e-14;
 
+/// ||H||_F without overflow or underflow (entries can reach 1e200 at extreme scales).
+pub fn frobenius(h: &Matrix3<f64>) -> f64 {
+    let m = h.amax();
+    if m > 0.0 && m.is_finite() {
+        m * (h / m).norm()
+    } else {
+        h.norm()
+    }
+}
+
 #[inline(always)]
 pub fn w_of(h: &Matrix3<f64>, p: &Point) -> f64 {
     h[(2, 0)] * p[0] + h[(2, 1)] * p[1] + h[(2, 2)]
 }
 
-/// Orients H so the source points have w > 0 and scales it by the convention above.
+/// Orients H so the source points have w > 0 and scales it by the convention above. H is
+/// divided once, by |h33| (or by its norm): its entries can span 1e-250 to 1e250 at extreme
+/// coordinate scales, and an intermediate normalisation would underflow the small ones.
 pub fn orient_and_scale(h: &Matrix3<f64>, src: &[Point]) -> Result<Matrix3<f64>> {
     for (k, v) in h.iter().enumerate() {
         if !v.is_finite() {
@@ -28,14 +40,13 @@ pub fn orient_and_scale(h: &Matrix3<f64>, src: &[Point]) -> Result<Matrix3<f64>>
             });
         }
     }
-    let norm = h.norm();
+    let norm = frobenius(h);
     if !(norm > 0.0) {
         return Err(HomographyError::Singular { ratio: 0.0 });
     }
-    let h = h / norm;
     let (mut pos, mut neg, mut wmax) = (0usize, 0usize, 0.0_f64);
     for p in src {
-        let w = w_of(&h, p);
+        let w = w_of(h, p);
         wmax = wmax.max(w.abs());
         if w > 0.0 {
             pos += 1;
@@ -48,7 +59,7 @@ pub fn orient_and_scale(h: &Matrix3<f64>, src: &[Point]) -> Result<Matrix3<f64>>
         // Name a point on the minority side.
         let index = src
             .iter()
-            .position(|p| sign * w_of(&h, p) <= 0.0)
+            .position(|p| sign * w_of(h, p) <= 0.0)
             .unwrap_or(0);
         return Err(HomographyError::MixedOrientation {
             index,
@@ -56,12 +67,12 @@ pub fn orient_and_scale(h: &Matrix3<f64>, src: &[Point]) -> Result<Matrix3<f64>>
             total: src.len(),
         });
     }
-    let h = h * sign;
     let h33 = h[(2, 2)].abs();
+    // A true division, so h33 / |h33| is exactly +-1 (multiplying by 1 / |h33| is not).
     Ok(if h33 > H33_NEGLIGIBLE * wmax {
-        h / h33
+        h / h33 * sign
     } else {
-        h
+        h / norm * sign
     })
 }
 

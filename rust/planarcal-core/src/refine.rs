@@ -144,7 +144,8 @@ pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f
     let initial_cost = cur.cost;
     // A cost this small is rounding: the data are exact.
     let floor = 1e-28 * c.len() as f64;
-    let mut mu = 1e-3 * (0..8).map(|k| cur.jtj[(k, k)]).fold(0.0, f64::max);
+    // The linear estimate is a good start: begin close to Gauss-Newton (Nielsen's tau = 1e-6).
+    let mut mu = 1e-6 * (0..8).map(|k| cur.jtj[(k, k)]).fold(0.0, f64::max);
     let mut nu = 2.0;
     let mut iterations = 0;
     'outer: while iterations < MAX_ITERATIONS && cur.cost > floor {
@@ -163,7 +164,8 @@ pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f
                 continue;
             };
             let step = chol.solve(&(-cur.jtr));
-            if step.norm() <= 1e-15 * (p.norm() + 1e-15) {
+            // A step this small changes H below rounding that matters: converged.
+            if step.norm() <= 1e-13 * (p.norm() + 1e-13) {
                 break 'outer;
             }
             let trial_p = p + step;
@@ -181,7 +183,7 @@ pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f
                     nu = 2.0;
                     let gain = cur.cost - t.cost;
                     p = trial_p;
-                    let done = gain <= 1e-14 * cur.cost;
+                    let done = gain <= 1e-13 * cur.cost;
                     cur = t;
                     if done {
                         break 'outer;

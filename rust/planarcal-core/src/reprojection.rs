@@ -3,11 +3,13 @@
 
 use nalgebra::Matrix3;
 
-use crate::error::{HomographyError, Result};
-use crate::transform::{map_indexed, Homography, Orientation, PointStatus, TransformReport};
+use crate::correspondences::check_finite;
+use crate::error::{HomographyError, PointSet, Result};
+use crate::transform::{map_indexed, Homography, Orientation, TransformReport};
 use crate::Point;
 
 /// Per-point errors into `out`; +inf where the source point has no image (see the report).
+/// Non-finite points are bad input, not points without an image: they fail, named.
 pub fn reprojection_errors_into(
     h: &Matrix3<f64>,
     src: &[Point],
@@ -22,11 +24,10 @@ pub fn reprojection_errors_into(
         });
     }
     let t = Homography::from_matrix(h)?;
+    check_finite(src, PointSet::Source)?;
+    check_finite(dst, PointSet::Destination)?;
     Ok(map_indexed(out, f64::INFINITY, |i| {
         let d = &dst[i];
-        if !(d[0].is_finite() && d[1].is_finite()) {
-            return Err(PointStatus::NonFinite);
-        }
         let p = t.apply(&src[i], orientation)?;
         Ok((p[0] - d[0]).hypot(p[1] - d[1]))
     }))
@@ -80,6 +81,7 @@ impl ErrorStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::transform::PointStatus;
 
     #[test]
     fn errors_are_euclidean_distances() {
@@ -113,5 +115,22 @@ mod tests {
         .unwrap();
         assert_eq!(e, [0.0, f64::INFINITY]);
         assert_eq!(r.first, Some((1, PointStatus::AtInfinity)));
+    }
+
+    #[test]
+    fn non_finite_points_are_named_with_their_set() {
+        let h = Matrix3::identity();
+        let good = [[0.0, 0.0], [1.0, 0.0]];
+        let bad = [[0.0, 0.0], [f64::NAN, 0.0]];
+        let mut e = [0.0; 2];
+        for (src, dst, set) in [
+            (&good, &bad, PointSet::Destination),
+            (&bad, &good, PointSet::Source),
+        ] {
+            assert!(matches!(
+                reprojection_errors_into(&h, src, dst, &mut e, Orientation::Oriented),
+                Err(HomographyError::NonFinitePoint { set: s, index: 1, .. }) if s == set
+            ));
+        }
     }
 }

@@ -7,6 +7,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use crate::error::{HomographyError, Result};
+use crate::threads;
 
 /// Below this many points a batch runs on the calling thread: splitting costs more than it saves.
 pub const PARALLEL_MIN_POINTS: usize = 32_768;
@@ -212,7 +213,7 @@ impl<const S: usize, const D: usize> Projective<S, D> {
         };
         let n = src.len().min(out.len());
         let (src, out) = (&src[..n], &mut out[..n]);
-        if n < PARALLEL_MIN_POINTS {
+        if n < PARALLEL_MIN_POINTS || !threads::pool_allowed() {
             return run(0, src, out);
         }
         src.par_chunks(CHUNK_POINTS)
@@ -374,7 +375,7 @@ where
         }
         report
     };
-    if out.len() < PARALLEL_MIN_POINTS {
+    if out.len() < PARALLEL_MIN_POINTS || !threads::pool_allowed() {
         return run(0, out);
     }
     out.par_chunks_mut(CHUNK_POINTS)

@@ -1,5 +1,6 @@
-//! Arguments in: validate shape and dtype, borrow a C-contiguous float64 (or float32) buffer
-//! without copying, copy only what has to be converted (other dtypes, strided views, lists).
+//! Arguments in: validate shape and dtype, borrow a C-contiguous, aligned float64 (or
+//! float32) buffer without copying; let NumPy copy whatever has to be converted (other dtypes,
+//! strided, misaligned or byte-swapped arrays, lists) into a fresh array that is all three.
 
 use numpy::{
     PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
@@ -20,26 +21,18 @@ fn numpy(py: Python<'_>) -> PyResult<&Bound<'_, PyModule>> {
         .map(|m| m.bind(py))
 }
 
-/// Values of an array argument in C order, borrowed from NumPy when they already are.
-pub enum Values<'py, T: numpy::Element> {
-    Borrowed(PyReadonlyArrayDyn<'py, T>),
-    Owned(Vec<T>),
-}
-
-impl<T: numpy::Element> Values<'_, T> {
-    pub fn as_slice(&self) -> &[T] {
-        match self {
-            // A C-contiguous array always gives its slice; an empty slice is the safe fallback.
-            Values::Borrowed(a) => a.as_slice().unwrap_or(&[]),
-            Values::Owned(v) => v,
-        }
-    }
-}
-
-/// A real-valued array argument with its shape.
+/// A real-valued array argument: a borrowed C-contiguous, aligned buffer and its shape.
 pub struct ArrayArg<'py, T: numpy::Element> {
-    pub values: Values<'py, T>,
+    array: PyReadonlyArrayDyn<'py, T>,
     pub shape: Vec<usize>,
+}
+
+impl<T: numpy::Element> ArrayArg<'_, T> {
+    /// The values in C order.
+    pub fn values(&self) -> &[T] {
+        // `borrow` admits only arrays whose slice exists: the fallback is unreachable.
+        self.array.as_slice().unwrap_or(&[])
+    }
 }
 
 /// Any array-like as a NumPy array of a real dtype (integer or floating), else a clear error.
@@ -81,43 +74,54 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
         .unwrap_or_else(|_| "an object".into())
 }
 
-fn borrow_or_copy<'py, T: numpy::Element + Copy>(
+/// Borrows the array's buffer, which must be C-contiguous and aligned; None otherwise.
+fn borrow<'py, T: numpy::Element>(
     a: &Bound<'py, PyArrayDyn<T>>,
     name: &str,
-) -> PyResult<Values<'py, T>> {
+) -> PyResult<Option<ArrayArg<'py, T>>> {
+    if !(a.is_c_contiguous() && a.is_aligned()) {
+        return Ok(None);
+    }
     let ro = a
         .try_readonly()
         .map_err(|e| invalid(format!("{name} cannot be read: {e}")))?;
-    if ro.is_c_contiguous() {
-        Ok(Values::Borrowed(ro))
-    } else {
-        Ok(Values::Owned(ro.as_array().iter().copied().collect()))
+    if ro.as_slice().is_err() {
+        return Ok(None);
     }
+    Ok(Some(ArrayArg {
+        shape: a.shape().to_vec(),
+        array: ro,
+    }))
+}
+
+/// A fresh C-contiguous, aligned copy of a real-valued array-like, as `dtype`.
+fn fresh_copy<'py, T: numpy::Element>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    dtype: &str,
+) -> PyResult<ArrayArg<'py, T>> {
+    let arr = real_ndarray(obj, name)?;
+    let py = obj.py();
+    let kwargs = pyo3::types::PyDict::new(py);
+    kwargs.set_item(intern!(py, "dtype"), dtype)?;
+    kwargs.set_item(intern!(py, "order"), intern!(py, "C"))?;
+    kwargs.set_item(intern!(py, "copy"), true)?;
+    let copy = numpy(py)?.call_method(intern!(py, "array"), (&arr,), Some(&kwargs))?;
+    let a = copy
+        .cast::<PyArrayDyn<T>>()
+        .map_err(|_| invalid(format!("{name} could not be converted to {dtype}")))?;
+    borrow(a, name)?.ok_or_else(|| invalid(format!("{name} could not be copied")))
 }
 
 /// The argument as float64 values.
 pub fn f64_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<ArrayArg<'py, f64>> {
-    // Fast path: already a float64 ndarray.
+    // Fast path: a float64 ndarray that can be borrowed as it is.
     if let Ok(a) = obj.cast::<PyArrayDyn<f64>>() {
-        return Ok(ArrayArg {
-            shape: a.shape().to_vec(),
-            values: borrow_or_copy(a, name)?,
-        });
+        if let Some(arg) = borrow(a, name)? {
+            return Ok(arg);
+        }
     }
-    let arr = real_ndarray(obj, name)?;
-    let shape = arr.shape().to_vec();
-    let py = obj.py();
-    let converted = numpy(py)?.call_method1(
-        intern!(py, "ascontiguousarray"),
-        (&arr, intern!(py, "float64")),
-    )?;
-    let a = converted
-        .cast::<PyArrayDyn<f64>>()
-        .map_err(|_| invalid(format!("{name} could not be converted to float64")))?;
-    Ok(ArrayArg {
-        shape,
-        values: borrow_or_copy(a, name)?,
-    })
+    fresh_copy(obj, name, "float64")
 }
 
 /// float32 input stays float32 (OpenCV's perspectiveTransform keeps the input dtype).
@@ -128,10 +132,10 @@ pub enum Floats<'py> {
 
 pub fn float_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Floats<'py>> {
     if let Ok(a) = obj.cast::<PyArrayDyn<f32>>() {
-        return Ok(Floats::F32(ArrayArg {
-            shape: a.shape().to_vec(),
-            values: borrow_or_copy(a, name)?,
-        }));
+        return match borrow(a, name)? {
+            Some(arg) => Ok(Floats::F32(arg)),
+            None => fresh_copy(obj, name, "float32").map(Floats::F32),
+        };
     }
     f64_array(obj, name).map(Floats::F64)
 }
@@ -153,7 +157,7 @@ pub struct Points2<'py>(pub ArrayArg<'py, f64>);
 
 impl Points2<'_> {
     pub fn as_points(&self) -> &[[f64; 2]] {
-        self.0.values.as_slice().as_chunks::<2>().0
+        self.0.values().as_chunks::<2>().0
     }
 }
 
@@ -166,11 +170,12 @@ pub fn points2<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Points2<'py
 /// A 3 x 3 matrix argument.
 pub fn matrix3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<nalgebra::Matrix3<f64>> {
     let arg = f64_array(obj, name)?;
-    if arg.shape != [3, 3] {
+    let values = arg.values();
+    if arg.shape != [3, 3] || values.len() != 9 {
         return Err(invalid(format!(
             "{name} must be a 3 x 3 matrix, got shape {:?}",
             arg.shape
         )));
     }
-    Ok(nalgebra::Matrix3::from_row_slice(arg.values.as_slice()))
+    Ok(nalgebra::Matrix3::from_row_slice(values))
 }

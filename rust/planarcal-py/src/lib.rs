@@ -10,6 +10,12 @@ mod transform;
 
 use pyo3::prelude::*;
 
+/// Called by Python's os.register_at_fork in a forked child: see planarcal_core::threads.
+#[pyfunction]
+fn _after_fork_in_child() {
+    planarcal_core::threads::forked_child();
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -26,5 +32,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(transform::perspective_transform, m)?)?;
     m.add_function(wrap_pyfunction!(reprojection::reprojection_errors, m)?)?;
     m.add_function(wrap_pyfunction!(reprojection::error_stats, m)?)?;
+    m.add_function(wrap_pyfunction!(_after_fork_in_child, m)?)?;
     Ok(())
 }

@@ -63,7 +63,12 @@ pub fn error_stats(
             arg.shape
         )));
     }
-    let s = ErrorStats::of(arg.values.as_slice())
+    if let Some(i) = arg.values().iter().position(|e| e.is_nan()) {
+        return Err(crate::errors::invalid(format!(
+            "errors[{i}] is NaN: no statistic of these errors would mean anything"
+        )));
+    }
+    let s = ErrorStats::of(arg.values())
         .ok_or_else(|| crate::errors::invalid("errors is empty: no statistics to report"))?;
     Ok((s.count, s.mean, s.rms, s.max, s.min, s.argmax, s.argmin))
 }

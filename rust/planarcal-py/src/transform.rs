@@ -96,7 +96,7 @@ where
     T: numpy::Element + Coord,
 {
     let p = Projective::<S, D>::from_row_major(m).map_err(to_py)?;
-    let input = src.values.as_slice().as_chunks::<S>().0;
+    let input = src.values().as_chunks::<S>().0;
     let mut shape = src.shape.clone();
     if let Some(last) = shape.last_mut() {
         *last = D;
@@ -146,7 +146,7 @@ pub fn perspective_transform<'py>(
     if n == 0 {
         return Ok(None);
     }
-    let mv = m.values.as_slice();
+    let mv = m.values();
     macro_rules! run {
         ($a:expr, $t:ty) => {
             match (scn, dcn) {
