@@ -4,6 +4,7 @@ hypothesis profile."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,11 @@ settings.register_profile(
 )
 settings.load_profile("default")
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+# The project's shared material (the paper's tables, real photographs): ../shared beside the
+# checkout, or wherever PLANARCAL_SHARED points. The package itself never needs it.
+SHARED = Path(
+    os.environ.get("PLANARCAL_SHARED", Path(__file__).resolve().parents[1].parent / "shared")
+)
 
 
 @pytest.fixture(scope="session")

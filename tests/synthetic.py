@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 from hypothesis import strategies as st
@@ -88,6 +89,37 @@ def relative_h_error(a: F64, b: F64) -> float:
     """|| a/|a| - b/|b| ||_F with the signs aligned (kornia's convention)."""
     a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
     return float(min(np.linalg.norm(a - b), np.linalg.norm(a + b)))
+
+
+def identical(a: Any, b: Any) -> bool:
+    """Same answer: equal arrays of the same dtype and shape (NaN equal to NaN), recursively."""
+    if a is None or b is None:
+        return a is None and b is None
+    if isinstance(a, tuple):
+        return isinstance(b, tuple) and len(a) == len(b) and all(map(identical, a, b))
+    if isinstance(a, np.ndarray):
+        return (
+            isinstance(b, np.ndarray)
+            and a.dtype == b.dtype
+            and a.shape == b.shape
+            and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+        )
+    return bool(a == b)
+
+
+# OpenCV's robust findHomography flags, by name (the reference list, independent of planarcal).
+OPENCV_ROBUST_METHODS = (
+    "LMEDS",
+    "RANSAC",
+    "RHO",
+    "USAC_DEFAULT",
+    "USAC_PARALLEL",
+    "USAC_FM_8PTS",
+    "USAC_FAST",
+    "USAC_ACCURATE",
+    "USAC_PROSAC",
+    "USAC_MAGSAC",
+)
 
 
 point_counts = st.one_of(

@@ -18,6 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from synthetic import OPENCV_ROBUST_METHODS, identical
 
 H_TRUE = np.array([[1.2, 0.1, 5.0], [-0.05, 0.9, 3.0], [1e-3, 2e-3, 1.0]])
 N = 20
@@ -56,22 +57,6 @@ SOLVER_REFINE = [
 
 def message(excinfo: pytest.ExceptionInfo[BaseException]) -> str:
     return str(excinfo.value)
-
-
-def identical(a: Any, b: Any) -> bool:
-    """Same answer: equal arrays of the same dtype and shape (NaN equal to NaN), recursively."""
-    if a is None or b is None:
-        return a is None and b is None
-    if isinstance(a, tuple):
-        return isinstance(b, tuple) and len(a) == len(b) and all(map(identical, a, b))
-    if isinstance(a, np.ndarray):
-        return (
-            isinstance(b, np.ndarray)
-            and a.dtype == b.dtype
-            and a.shape == b.shape
-            and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
-        )
-    return bool(a == b)
 
 
 def _pt(src: Any, _dst: Any) -> Any:
@@ -1080,18 +1065,7 @@ def test_find_homography_unknown_method(method: int) -> None:
     assert f"unknown estimation method {method}" in message(info)
 
 
-ROBUST = [
-    "LMEDS",
-    "RANSAC",
-    "RHO",
-    "USAC_DEFAULT",
-    "USAC_PARALLEL",
-    "USAC_FM_8PTS",
-    "USAC_FAST",
-    "USAC_ACCURATE",
-    "USAC_PROSAC",
-    "USAC_MAGSAC",
-]
+ROBUST = OPENCV_ROBUST_METHODS
 
 
 @pytest.mark.parametrize("name", ROBUST)

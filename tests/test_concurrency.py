@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 import planarcal as pc
 import pytest
+from synthetic import identical
 
 N_THREADS = 8
 BIG = 200_000
@@ -38,21 +39,6 @@ def outcome(task: Task) -> Any:
         return task()
     except pc.HomographyError as e:
         return ("raised", type(e).__name__, isinstance(e, cv2.error), str(e))
-
-
-def identical(a: Any, b: Any) -> bool:
-    if a is None or b is None:
-        return a is None and b is None
-    if isinstance(a, tuple):
-        return isinstance(b, tuple) and len(a) == len(b) and all(map(identical, a, b))
-    if isinstance(a, np.ndarray):
-        return (
-            isinstance(b, np.ndarray)
-            and a.dtype == b.dtype
-            and a.shape == b.shape
-            and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
-        )
-    return bool(a == b)
 
 
 def check_concurrent(tasks: Sequence[Task], rounds: int) -> None:

@@ -12,7 +12,15 @@ import planarcal
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from synthetic import Problem, exact_problems, examples, frame, project, relative_h_error
+from synthetic import (
+    OPENCV_ROBUST_METHODS,
+    Problem,
+    exact_problems,
+    examples,
+    frame,
+    project,
+    relative_h_error,
+)
 
 
 @given(exact_problems())
@@ -163,16 +171,5 @@ def test_transforms_match_opencv(p: Problem) -> None:
 
 
 def test_method_constants_carry_opencvs_values() -> None:
-    for name in (
-        "LMEDS",
-        "RANSAC",
-        "RHO",
-        "USAC_DEFAULT",
-        "USAC_PARALLEL",
-        "USAC_FM_8PTS",
-        "USAC_FAST",
-        "USAC_ACCURATE",
-        "USAC_PROSAC",
-        "USAC_MAGSAC",
-    ):
+    for name in OPENCV_ROBUST_METHODS:
         assert getattr(planarcal, name) == getattr(cv2, name), name
