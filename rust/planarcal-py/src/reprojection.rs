@@ -1,12 +1,12 @@
 //! Reprojection errors (Eq. 6) and their statistics (Eq. 7, RMS, max, min).
 
-use numpy::{PyArray1, PyArrayMethods};
+use numpy::PyArrayDyn;
 use planarcal_core::{reprojection_errors_into, ErrorStats, Orientation};
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
 use crate::errors::{no_image, to_py};
-use crate::transform::{maybe_detach, on_invalid, OnInvalid};
+use crate::transform::{new_array, on_invalid, OnInvalid};
 
 /// reprojection_errors(h, src, dst, invalid="raise")
 /// --
@@ -20,7 +20,7 @@ pub fn reprojection_errors<'py>(
     src: &Bound<'py, PyAny>,
     dst: &Bound<'py, PyAny>,
     invalid: &str,
-) -> PyResult<Bound<'py, PyArray1<f64>>> {
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let mode = on_invalid(invalid, "inf")?;
     let m = matrix3(h, "h")?;
     let (s, d) = (points2(src, "src")?, points2(dst, "dst")?);
@@ -32,16 +32,10 @@ pub fn reprojection_errors<'py>(
             dst: d.len(),
         }));
     }
-    // SAFETY: fresh C-contiguous array, fully written by reprojection_errors_into below.
-    let out = unsafe { PyArray1::<f64>::new(py, [n], false) };
-    let report = {
-        let slice =
-            unsafe { out.as_slice_mut() }.map_err(|e| crate::errors::invalid(e.to_string()))?;
-        maybe_detach(py, n, || {
-            reprojection_errors_into(&m, s, d, slice, Orientation::Oriented)
-        })
-        .map_err(to_py)?
-    };
+    let (out, report) = new_array::<f64, _>(py, &[n], n, n, |slice| {
+        reprojection_errors_into(&m, s, d, slice, Orientation::Oriented)
+    })?;
+    let report = report.map_err(to_py)?;
     if mode == OnInvalid::Raise && report.invalid() > 0 {
         return Err(no_image(&report, n, "source points"));
     }
