@@ -20,7 +20,8 @@ pub enum Solver {
     /// Hartley-normalised DLT (the default, and the start of refinement).
     #[default]
     NormalizedDlt,
-    /// Plain DLT on raw coordinates by SVD, ||h|| = 1.
+    /// Plain DLT on raw coordinates: the right singular vector of A for its smallest singular
+    /// value (returned scaled like every estimate).
     Svd,
     /// The paper's a33 = 1 linear least squares (its Eq. 4-5).
     A33,
