@@ -1,0 +1,39 @@
+"""The exceptions of planarcal's Python layer. Where the input is at fault they are
+ValueErrors, so ``except ValueError`` works for users who do not know the library; the
+homography errors of the Rust core (HomographyError and its subclasses) are re-exported here
+so one module names them all."""
+
+from __future__ import annotations
+
+from planarcal._core import DegenerateError, HomographyError, PointAtInfinityError
+
+__all__ = [
+    "BoardError",
+    "BoardNotFoundError",
+    "CalibrationFileError",
+    "CameraError",
+    "DegenerateError",
+    "HomographyError",
+    "ImageError",
+    "PointAtInfinityError",
+]
+
+
+class BoardError(ValueError):
+    """A board description that cannot be a circle grid (sizes, counts, a dot too large)."""
+
+
+class ImageError(ValueError):
+    """An image that cannot be used: unreadable, empty, of the wrong type or shape."""
+
+
+class BoardNotFoundError(ValueError):
+    """The image does not show the board: says what was seen and what to try."""
+
+
+class CalibrationFileError(ValueError):
+    """A calibration file that cannot be loaded: corrupt, truncated, or of another version."""
+
+
+class CameraError(OSError):
+    """A camera, video, stream or image folder that cannot be opened or stops delivering."""
