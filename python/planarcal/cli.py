@@ -1,15 +1,161 @@
-"""The `planarcal` command line."""
+"""The `planarcal` command line: board, calibrate, locate, demo.
+
+Exit status: 0 on success, 1 when the job fails (no board in view, a file that cannot be read
+or written: one clear line on stderr, no traceback), 2 for a malformed command line.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
 from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 from planarcal import __version__
+from planarcal.homography import SOLVERS
+
+# Errors the commands report in one line; anything else is a bug and keeps its traceback.
+_EXPECTED: tuple[type[BaseException], ...] = (ValueError, OSError)
 
 
-def _demo(_: argparse.Namespace) -> int:
+def _board_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("board (millimetres; the defaults are the paper's board)")
+    g.add_argument("--cols", type=int, default=14, help="dots along a row (default 14)")
+    g.add_argument("--rows", type=int, default=10, help="dots down a column (default 10)")
+    g.add_argument("--pitch", type=float, default=20.0, help="centre-to-centre distance (20)")
+    g.add_argument("--diameter", type=float, default=10.0, help="dot diameter (10)")
+    g.add_argument(
+        "--origin-marker",
+        action="store_true",
+        help="the origin dot is printed larger and fixes the orientation",
+    )
+    g.add_argument(
+        "--marker-diameter",
+        type=float,
+        default=None,
+        help="diameter of the origin marker (default 1.5 x the dots)",
+    )
+
+
+def _board(args: argparse.Namespace) -> Any:
+    from planarcal.board import CircleGridBoard
+
+    return CircleGridBoard(
+        cols=args.cols,
+        rows=args.rows,
+        pitch=args.pitch,
+        diameter=args.diameter,
+        origin_marker=args.origin_marker,
+        marker_diameter=args.marker_diameter,
+    )
+
+
+def _cmd_board(args: argparse.Namespace) -> int:
+    from planarcal.printable import write_board
+
+    board = _board(args)
+    layout = write_board(
+        board, args.output, page=args.page, orientation=args.orientation, margin_mm=args.margin
+    )
+    print(
+        f"wrote {args.output}: {board.cols} x {board.rows} dots, {board.diameter:g} mm, "
+        f"{board.pitch:g} mm apart, on {layout.page} {layout.orientation}. Print it at "
+        "100% (actual size, no fit-to-page) and check the bar measures 100 mm."
+    )
+    return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from planarcal.calibration import Calibration
+    from planarcal.detect import detect_board
+    from planarcal.report import summary_json, summary_text, write_report
+
+    board = _board(args)
+    image = _read_image(args)
+    detection = detect_board(image, board, polarity=args.polarity)
+    cal = Calibration.from_detection(detection, solver=args.solver, refine=not args.no_refine)
+    saved = cal.save(args.output)
+    written = []
+    if args.report is not None:
+        written = write_report(cal, args.report, image=image, detection=detection)
+    if args.json:
+        out = summary_json(cal, detection)
+        out["calibration_file"] = str(saved)
+        if written:
+            out["report_files"] = [str(p) for p in written]
+        print(json.dumps(out, allow_nan=False))
+    else:
+        print(summary_text(cal, detection))
+        print(f"Saved the calibration to {saved}")
+        for p in written:
+            print(f"Wrote {p}")
+    return 0
+
+
+def _read_image(args: argparse.Namespace) -> Any:
+    """The calibration image: a file, or the average of frames from a camera source."""
+    from planarcal.images import load_image
+
+    if args.camera is None:
+        if args.image is None:
+            raise ValueError("give an IMAGE file or --camera SOURCE")
+        return load_image(args.image)
+    from planarcal.capture import Camera
+
+    source: int | str = int(args.camera) if args.camera.isdigit() else args.camera
+    with Camera(source) as camera:
+        return camera.average(args.frames)
+
+
+def _cmd_locate(args: argparse.Namespace) -> int:
+    from planarcal.calibration import Calibration
+    from planarcal.drawing import draw_objects, png_bytes
+    from planarcal.files import atomic_write
+    from planarcal.images import load_image
+    from planarcal.objects import locate_objects
+
+    cal = Calibration.load(args.calibration)
+    image = load_image(args.image)
+    objects = locate_objects(image, cal, min_area_px=args.min_area)
+    if args.annotate is not None:
+        atomic_write(args.annotate, png_bytes(draw_objects(image, objects)))
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "calibration_file": str(args.calibration),
+                    "objects": [
+                        {
+                            "id": o.id,
+                            "image_px": list(o.centroid_px),
+                            "world_mm": None if o.world_mm is None else list(o.world_mm),
+                            "area_px": o.area_px,
+                        }
+                        for o in objects
+                    ],
+                }
+            )
+        )
+        return 0
+    if not objects:
+        print("No objects found.")
+    else:
+        print(f"{'object':<8}{'image x':>10}{'image y':>10}{'X (mm)':>12}{'Y (mm)':>12}")
+        for o in objects:
+            wx, wy = o.world_mm if o.world_mm is not None else (float("nan"),) * 2
+            print(
+                f"ID:{o.id:<5}{o.centroid_px[0]:>10.1f}{o.centroid_px[1]:>10.1f}"
+                f"{wx:>12.3f}{wy:>12.3f}"
+            )
+    if args.annotate is not None:
+        print(f"Wrote {args.annotate}")
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
     from planarcal import demo
 
     print(demo.run())
@@ -19,17 +165,86 @@ def _demo(_: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="planarcal",
-        description="Camera pixels to millimetres on a work plane.",
+        description="Camera pixels to millimetres on a work plane: print a circle-grid board, "
+        "calibrate from a picture of it, then locate objects in millimetres.",
     )
     parser.add_argument("--version", action="version", version=f"planarcal {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    demo = commands.add_parser(
-        "demo",
-        help="calibrate on the paper's built-in data and map its objects to millimetres",
-        description="Fit the paper's published points with every solver, report the errors, "
-        "and map the paper's objects from pixels to millimetres. Needs no camera and no files.",
+
+    p = commands.add_parser(
+        "board",
+        help="write a printable board (SVG or PDF) at exact scale",
+        description="Write a circle-grid board to print at 100%, with a "
+        "100 mm check bar and its parameters.",
     )
-    demo.set_defaults(run=_demo)
+    _board_arguments(p)
+    p.add_argument("-o", "--output", required=True, type=Path, help="board.svg or board.pdf")
+    p.add_argument("--page", default="A4", help="A4, A3, letter, ... or WxH in mm (A4)")
+    p.add_argument("--orientation", default="auto", choices=("auto", "portrait", "landscape"))
+    p.add_argument("--margin", type=float, default=10.0, help="page margin in mm (10)")
+    p.set_defaults(run=_cmd_board)
+
+    p = commands.add_parser(
+        "calibrate",
+        help="calibrate from an image of the board",
+        description="Find the board in IMAGE, fit the plane's homography, "
+        "save it, and report its accuracy.",
+    )
+    p.add_argument("image", nargs="?", type=Path, help="image of the board")
+    p.add_argument(
+        "--camera",
+        default=None,
+        help="instead of IMAGE: a camera index, video file, stream URL or image "
+        "folder, whose frames are averaged",
+    )
+    p.add_argument("--frames", type=int, default=10, help="frames to average with --camera (10)")
+    _board_arguments(p)
+    p.add_argument("-o", "--output", required=True, type=Path, help="calibration file (JSON)")
+    p.add_argument(
+        "--solver",
+        default="normalized_dlt",
+        choices=SOLVERS,
+        help="linear solver (a33 reproduces the paper)",
+    )
+    p.add_argument(
+        "--no-refine",
+        action="store_true",
+        help="skip the Levenberg-Marquardt refinement (the paper's method has none)",
+    )
+    p.add_argument(
+        "--polarity",
+        default="auto",
+        choices=("auto", "dark", "light"),
+        help="dark dots on light paper, light on dark, or try both",
+    )
+    p.add_argument(
+        "--report", type=Path, default=None, help="directory for the tables (CSV) and figures (PNG)"
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.set_defaults(run=_cmd_calibrate)
+
+    p = commands.add_parser(
+        "locate",
+        help="locate objects in mm with a calibration",
+        description="Find the objects in IMAGE and give each one's position on the plane in mm.",
+    )
+    p.add_argument("image", type=Path, help="image of the objects")
+    p.add_argument("--calibration", required=True, type=Path, help="file from 'calibrate'")
+    p.add_argument(
+        "--min-area", type=float, default=None, help="smallest object outline area in px^2"
+    )
+    p.add_argument("--annotate", type=Path, default=None, help="write the annotated image here")
+    p.add_argument("--json", action="store_true", help="print the objects as one JSON object")
+    p.set_defaults(run=_cmd_locate)
+
+    p = commands.add_parser(
+        "demo",
+        help="the whole pipeline on a rendered scene of the paper's setup",
+        description="Render the paper's setup (board, lens, blur, noise; then bolts and nuts at "
+        "known places), calibrate, locate the objects, and say how far each is from the truth. "
+        "Needs no camera and no files.",
+    )
+    p.set_defaults(run=_cmd_demo)
     return parser
 
 
@@ -39,7 +254,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2
-    code: int = args.run(args)
+    try:
+        code: int = args.run(args)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # The reader went away (e.g. `| head`): not an error of ours. Python would complain
+        # again when it flushes stdout at exit, so point stdout at nothing first.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+    except _EXPECTED as e:
+        print(f"planarcal {args.command}: error: {e}", file=sys.stderr)
+        return 1
     return code
 
 

@@ -1,0 +1,158 @@
+"""Pictures of what was found, drawn on the image: the board's detection (the paper's
+Figure 4) and the located objects (its Figure 6). PNG bytes out, for atomic writing."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal.images import as_grey
+
+U8 = NDArray[np.uint8]
+
+
+def _canvas(image: Any) -> U8:
+    """A BGR 8-bit copy of the image to draw on."""
+    import cv2
+
+    if (
+        isinstance(image, np.ndarray)
+        and image.ndim == 3
+        and image.shape[2] >= 3
+        and image.dtype == np.uint8
+    ):
+        return np.array(image[:, :, :3], dtype=np.uint8, order="C", copy=True)
+    grey = np.clip(np.rint(as_grey(image)), 0, 255).astype(np.uint8)
+    return np.asarray(cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR), dtype=np.uint8)
+
+
+def _scale(canvas: U8) -> float:
+    """Line and text size relative to a 1280-pixel-wide image."""
+    return max(0.5, float(max(canvas.shape[:2])) / 1280.0)
+
+
+def draw_detection(image: Any, detection: Any) -> U8:
+    """The image with every found dot centre marked and numbered in board order, the grid
+    drawn through them, and the board's origin and X / Y directions."""
+    import cv2
+
+    canvas = _canvas(image)
+    s = _scale(canvas)
+    board = detection.board
+    pts = detection.image_points
+    grid = pts.reshape(board.rows, board.cols, 2)
+    shift = 4  # sub-pixel drawing: coordinates in 1/16 px
+    f = float(1 << shift)
+
+    def ip(p: NDArray[np.float64]) -> tuple[int, int]:
+        return round(p[0] * f), round(p[1] * f)
+
+    for r in range(board.rows):
+        cv2.polylines(
+            canvas,
+            [np.rint(grid[r] * f).astype(np.int32)],
+            False,
+            (255, 160, 0),
+            max(1, int(s)),
+            cv2.LINE_AA,
+            shift,
+        )
+    for c in range(board.cols):
+        cv2.polylines(
+            canvas,
+            [np.rint(grid[:, c] * f).astype(np.int32)],
+            False,
+            (255, 160, 0),
+            max(1, int(s)),
+            cv2.LINE_AA,
+            shift,
+        )
+    radius = max(2.0, 0.12 * detection.pitch_px)
+    for k, p in enumerate(pts):
+        cv2.circle(canvas, ip(p), int(radius * f), (0, 0, 255), max(1, int(s)), cv2.LINE_AA, shift)
+        cv2.putText(
+            canvas,
+            str(k + 1),
+            (int(p[0] + radius), int(p[1] - radius)),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.35 * s,
+            (0, 200, 0),
+            max(1, int(s)),
+            cv2.LINE_AA,
+        )
+    origin = grid[0, 0]
+    for end, label, colour in ((grid[0, 1], "X", (0, 0, 255)), (grid[1, 0], "Y", (0, 160, 0))):
+        tip = origin + 1.8 * (end - origin)
+        cv2.arrowedLine(
+            canvas, ip(origin), ip(tip), colour, max(2, int(2 * s)), cv2.LINE_AA, shift, 0.2
+        )
+        cv2.putText(
+            canvas,
+            label,
+            (int(tip[0] + 4), int(tip[1] + 4)),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.7 * s,
+            colour,
+            max(2, int(2 * s)),
+            cv2.LINE_AA,
+        )
+    note = (
+        f"{board.cols} x {board.rows} board, {detection.method} finder, "
+        f"residual {detection.residual_rms_px:.2f} px RMS"
+    )
+    _label(canvas, note, (10, int(25 * s)), s)
+    return canvas
+
+
+def draw_objects(image: Any, objects: Sequence[Any]) -> U8:
+    """The image with each object's outline, centroid, ID and (when located) its position in
+    mm."""
+    import cv2
+
+    canvas = _canvas(image)
+    s = _scale(canvas)
+    for o in objects:
+        contour = np.rint(o.contour_px).astype(np.int32).reshape(-1, 1, 2)
+        cv2.drawContours(canvas, [contour], -1, (0, 200, 255), max(1, int(s)), cv2.LINE_AA)
+        cx, cy = o.centroid_px
+        cv2.drawMarker(
+            canvas,
+            (round(cx), round(cy)),
+            (0, 0, 255),
+            cv2.MARKER_CROSS,
+            int(14 * s),
+            max(1, int(s)),
+            cv2.LINE_AA,
+        )
+        text = f"ID:{o.id}"
+        if o.world_mm is not None:
+            text += f" ({o.world_mm[0]:.1f}, {o.world_mm[1]:.1f}) mm"
+        x, y, _, _ = o.bbox_px
+        _label(canvas, text, (x, max(int(15 * s), y - int(6 * s))), s)
+    return canvas
+
+
+def _label(canvas: U8, text: str, org: tuple[int, int], s: float) -> None:
+    import cv2
+
+    scale = 0.5 * s
+    thick = max(1, int(s))
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+    x, y = org
+    cv2.rectangle(canvas, (x - 2, y - th - 3), (x + tw + 2, y + base), (255, 255, 255), -1)
+    cv2.putText(
+        canvas, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), thick, cv2.LINE_AA
+    )
+
+
+def png_bytes(image: U8) -> bytes:
+    """The image encoded as PNG."""
+    import cv2
+
+    ok, buf = cv2.imencode(".png", image)
+    if not ok:
+        raise ValueError("could not encode the image as PNG")
+    return bytes(buf.tobytes())
