@@ -47,8 +47,9 @@ from typing import Any
 
 import cv2
 import numpy as np
-import planarcal as pc
 from numpy.typing import NDArray
+
+import planarcal as pc
 
 Array = NDArray[Any]
 

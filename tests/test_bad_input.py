@@ -13,11 +13,12 @@ from typing import Any
 
 import cv2
 import numpy as np
-import planarcal as pc
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+
+import planarcal as pc
 from synthetic import OPENCV_ROBUST_METHODS, identical
 
 H_TRUE = np.array([[1.2, 0.1, 5.0], [-0.05, 0.9, 3.0], [1e-3, 2e-3, 1.0]])

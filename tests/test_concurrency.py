@@ -23,8 +23,9 @@ from typing import Any
 
 import cv2
 import numpy as np
-import planarcal as pc
 import pytest
+
+import planarcal as pc
 from synthetic import identical
 
 N_THREADS = 8

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-import planarcal
 import pytest
+
+import planarcal
 from synthetic import Problem, frame, project, relative_h_error
 
 H = np.array([[1.2, 0.1, 30.0], [-0.05, 0.9, 20.0], [2e-4, -1e-4, 1.0]])

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-import planarcal
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+import planarcal
 from synthetic import (
     OPENCV_ROBUST_METHODS,
     Problem,

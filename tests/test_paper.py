@@ -7,8 +7,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import planarcal
 import pytest
+
+import planarcal
 from planarcal import paper_data
 
 

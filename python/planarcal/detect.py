@@ -90,9 +90,12 @@ def detect_board(
     refusals: list[str] = []
     for pol in polarities:
         ink_dark = grey if pol == "dark" else 255.0 - grey
-        for method, grid in _grid_candidates(ink_dark, board):
+        u8 = np.clip(np.rint(ink_dark), 0, 255).astype(np.uint8)
+        detector = _blob_detector(u8.shape, board)
+        blobs = _blobs(u8, detector)
+        for method, grid in _grid_candidates(u8, detector, blobs, board):
             try:
-                return _finish(ink_dark, grid, board, method, pol)
+                return _finish(ink_dark, grid, board, method, pol, blobs)
             except _RefusedError as why:
                 refusals.append(f"{method} ({pol} dots): {why}")
     raise BoardNotFoundError(_explain(grey, board, polarities, refusals))
@@ -107,13 +110,11 @@ class _RefusedError(Exception):
 
 
 def _grid_candidates(
-    ink_dark: NDArray[np.float32], board: CircleGridBoard
+    u8: NDArray[np.uint8], detector: Any, blobs: list[_Blob], board: CircleGridBoard
 ) -> Iterator[tuple[str, F64]]:
     """(method, grid of shape (rows, cols, 2)) for each way of finding the dots, in order."""
     import cv2
 
-    u8 = np.clip(np.rint(ink_dark), 0, 255).astype(np.uint8)
-    detector = _blob_detector(u8.shape, board)
     patterns = [(board.cols, board.rows)]
     if board.rows != board.cols:
         patterns.append((board.rows, board.cols))
@@ -135,7 +136,6 @@ def _grid_candidates(
                         np.asarray(centres, dtype=np.float64).reshape(-1, 2), pattern, board
                     ),
                 )
-    blobs = _blobs(u8, detector)
     grid = _assemble_grid(blobs, board)
     if grid is not None:
         yield "blobs", grid
@@ -283,6 +283,7 @@ def _finish(
     board: CircleGridBoard,
     method: str,
     polarity: Literal["dark", "light"],
+    blobs: list[_Blob],
 ) -> BoardDetection:
     rows, cols = board.rows, board.cols
     pitch = _median_pitch(grid)
@@ -306,6 +307,13 @@ def _finish(
             f"not the board's grid: dot {k} is {worst:.1f} px from where a homography puts "
             f"it (pitch {pitch:.1f} px)"
         )
+    diameters = 2.0 * np.sqrt(area_grid.reshape(-1) / np.pi)
+    beyond = _continues_beyond(h, board, blobs, float(np.median(diameters)), pitch)
+    if beyond is not None:
+        raise _RefusedError(
+            f"the dots continue past the grid's {beyond} edge: the board in view is larger than "
+            f"{cols} x {rows} (check --cols and --rows)"
+        )
     height, width = ink_dark.shape[:2]
     return BoardDetection(
         board=board,
@@ -313,9 +321,44 @@ def _finish(
         image_size=(width, height),
         method=method,
         polarity=polarity,
-        dot_diameters_px=2.0 * np.sqrt(area_grid.reshape(-1) / np.pi),
+        dot_diameters_px=diameters,
         residual_rms_px=float(np.sqrt(np.mean(residuals**2))),
     )
+
+
+def _continues_beyond(
+    h: F64, board: CircleGridBoard, blobs: list[_Blob], dot_px: float, pitch_px: float
+) -> str | None:
+    """The edge past which the grid visibly goes on (dots of the same size where one more row
+    or column would be), or None. A grid found inside a larger board is not that board: its
+    origin would be the wrong dot."""
+    if not blobs:
+        return None
+    from planarcal.homography import transform_points
+
+    p = board.pitch
+    cols, rows = board.cols, board.rows
+    edges = {
+        "top": [(c * p, -p) for c in range(cols)],
+        "bottom": [(c * p, rows * p) for c in range(cols)],
+        "left": [(-p, r * p) for r in range(rows)],
+        "right": [(cols * p, r * p) for r in range(rows)],
+    }
+    xy = np.array([[b.x, b.y] for b in blobs])
+    size = np.array([b.size for b in blobs])
+    similar = (size > 0.5 * dot_px) & (size < 2.0 * dot_px)
+    for name, positions in edges.items():
+        predicted = transform_points(h, np.array(positions), invalid="nan")
+        seen = 0
+        for q in predicted:
+            if not np.isfinite(q).all():
+                continue
+            d = np.hypot(xy[:, 0] - q[0], xy[:, 1] - q[1])
+            if (similar & (d < 0.25 * pitch_px)).any():
+                seen += 1
+        if seen >= max(2, len(positions) // 2):
+            return name
+    return None
 
 
 def _local_pitch(grid: F64) -> F64:
