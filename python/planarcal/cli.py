@@ -53,13 +53,27 @@ def _board(args: argparse.Namespace) -> Any:
     )
 
 
+# The pages `--page auto` tries, smallest first.
+AUTO_PAGES = ("A4", "A3", "A2", "A1", "A0")
+
+
 def _cmd_board(args: argparse.Namespace) -> int:
-    from planarcal.printable import write_board
+    from planarcal.errors import BoardError
+    from planarcal.printable import PrintLayout, write_board
 
     board = _board(args)
-    layout = write_board(
-        board, args.output, page=args.page, orientation=args.orientation, margin_mm=args.margin
-    )
+    pages = AUTO_PAGES if args.page.lower() == "auto" else (args.page,)
+    layout: PrintLayout | None = None
+    for page in pages:
+        try:
+            layout = write_board(
+                board, args.output, page=page, orientation=args.orientation, margin_mm=args.margin
+            )
+            break
+        except BoardError:
+            if page == pages[-1]:
+                raise  # the board fits no page tried: the error names one that would
+    assert layout is not None
     print(
         f"wrote {args.output}: {board.cols} x {board.rows} dots, {board.diameter:g} mm, "
         f"{board.pitch:g} mm apart, on {layout.page} {layout.orientation}. Print it at "
@@ -179,7 +193,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _board_arguments(p)
     p.add_argument("-o", "--output", required=True, type=Path, help="board.svg or board.pdf")
-    p.add_argument("--page", default="A4", help="A4, A3, letter, ... or WxH in mm (A4)")
+    p.add_argument(
+        "--page",
+        default="auto",
+        help="A4, A3, letter, ..., WxH in mm, or auto: the smallest ISO A page "
+        "the board fits (default)",
+    )
     p.add_argument("--orientation", default="auto", choices=("auto", "portrait", "landscape"))
     p.add_argument("--margin", type=float, default=10.0, help="page margin in mm (10)")
     p.set_defaults(run=_cmd_board)
