@@ -1,56 +1,264 @@
-"""The `planarcal` command line, run as users run it."""
+"""Every `planarcal` command, run as a user runs it, its output and its files checked."""
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
+import planarcal
+from planarcal import synth
 
-def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(args, capture_output=True, text=True, timeout=120, check=False)
+BOARD_ARGS = ["--cols", "14", "--rows", "10", "--pitch", "20", "--diameter", "10"]
 
 
-@pytest.mark.parametrize(
-    "command",
-    [["planarcal", "demo"], [sys.executable, "-m", "planarcal", "demo"]],
-    ids=["console-script", "python-m"],
-)
-def test_demo_runs_the_papers_calibration(command: list[str]) -> None:
-    if command[0] == "planarcal" and shutil.which("planarcal") is None:
-        pytest.fail("the planarcal console script is not installed on PATH")
-    result = _run(*command)
+def _run(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "planarcal", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        cwd=cwd,
+    )
+
+
+@pytest.fixture(scope="module")
+def scene() -> synth.PaperScene:
+    return synth.paper_scene(seed=7)
+
+
+@pytest.fixture(scope="module")
+def images(scene: synth.PaperScene, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("images")
+    paths = {"board": d / "board.png", "objects": d / "objects.png"}
+    cv2.imwrite(str(paths["board"]), scene.calibration.image)
+    cv2.imwrite(str(paths["objects"]), scene.objects.image)
+    return paths
+
+
+# ------------------------------------------------------------------------------------------
+# demo
+
+
+@pytest.mark.parametrize("console_script", [True, False], ids=["console-script", "python-m"])
+def test_demo_runs_the_whole_pipeline_on_a_rendered_scene(console_script: bool) -> None:
+    if console_script:
+        exe = shutil.which("planarcal")
+        if exe is None:
+            pytest.fail("the planarcal console script is not installed on PATH")
+        result = subprocess.run([exe, "demo"], capture_output=True, text=True, timeout=120)
+    else:
+        result = _run("demo")
     assert result.returncode == 0, result.stderr
     out = result.stdout
-    # Table 3 reproduced from the paper's matrix, to a hundredth of a pixel.
-    m = re.search(r"reprojected coordinates within ([0-9.]+) px", out)
-    assert m and float(m.group(1)) < 0.01
-    # One row per solver, with a plausible mean error in pixels.
-    for label in ("a33 = 1 least squares", "plain DLT by SVD", "normalised DLT + Levenberg"):
-        row = next(line for line in out.splitlines() if label in line)
-        mean = float(row.split()[-6])
-        assert 0.5 < mean < 0.8, row
-    # All ten objects mapped to millimetres, close to the paper's Table 5.
-    rows = [line.split() for line in out.splitlines() if re.match(r"\s+ID:\d+ ", line)]
+    assert "Found all 140 dots" in out
+    m = re.search(r"Dot centres against the truth: ([0-9.]+) px RMS", out)
+    assert m and float(m.group(1)) < 0.05
+    m = re.search(r"mean ([0-9.]+), RMS [0-9.]+, max ([0-9.]+)", out)
+    assert m and 0.2 < float(m.group(1)) < 1.0  # the lens's distortion, like the paper's
+    rows = [line for line in out.splitlines() if re.match(r"\s+ID:\d+ ", line)]
     assert len(rows) == 10
-    for row in rows:
-        ours, paper = np.array(row[3:5], float), np.array(row[5:7], float)
-        assert np.abs(ours - paper).max() < 1.0, row
+    errors = [float(line.split()[-2]) for line in rows]
+    assert max(errors) < 0.6  # every object within 0.6 mm of where it really is
+    assert "Located within" in out
 
 
 def test_no_command_prints_usage_and_fails() -> None:
-    result = _run(sys.executable, "-m", "planarcal")
+    result = _run()
     assert result.returncode == 2
     assert "usage: planarcal" in result.stderr
 
 
 def test_version() -> None:
-    import planarcal
-
-    result = _run(sys.executable, "-m", "planarcal", "--version")
+    result = _run("--version")
     assert result.returncode == 0
     assert result.stdout.strip() == f"planarcal {planarcal.__version__}"
+
+
+# ------------------------------------------------------------------------------------------
+# board
+
+
+@pytest.mark.parametrize("suffix", ["svg", "pdf"])
+def test_board_writes_a_printable_file(tmp_path: Path, suffix: str) -> None:
+    out = tmp_path / f"board.{suffix}"
+    result = _run("board", *BOARD_ARGS, "-o", out)
+    assert result.returncode == 0, result.stderr
+    assert "A3 landscape" in result.stdout  # the paper's board needs A3 (auto page)
+    assert "100 mm" in result.stdout
+    data = out.read_bytes()
+    if suffix == "svg":
+        assert b'width="420mm"' in data and b'height="297mm"' in data
+        assert data.count(b"<circle") == 140
+    else:
+        assert data.startswith(b"%PDF")
+        assert re.search(rb"/MediaBox \[0 0 1190\.55\d* 841\.889\d*\]", data)
+
+
+def test_board_refuses_a_page_it_does_not_fit(tmp_path: Path) -> None:
+    out = tmp_path / "board.pdf"
+    result = _run("board", *BOARD_ARGS, "--page", "A4", "-o", out)
+    assert result.returncode == 1
+    assert "does not fit on A4" in result.stderr and "A3" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert not out.exists()
+
+
+def test_board_bad_output_paths(tmp_path: Path) -> None:
+    result = _run("board", "-o", tmp_path / "board.txt")
+    assert result.returncode == 1 and ".svg or .pdf" in result.stderr
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    result = _run("board", "-o", blocker / "board.svg")
+    assert result.returncode == 1 and "board.svg" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+# ------------------------------------------------------------------------------------------
+# calibrate
+
+
+def test_calibrate_json_and_report(images: dict[str, Path], tmp_path: Path) -> None:
+    cal_path, report = tmp_path / "calib.json", tmp_path / "report"
+    result = _run(
+        "calibrate", images["board"], *BOARD_ARGS, "-o", cal_path, "--report", report, "--json"
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)  # one JSON object, nothing else on stdout
+    assert summary["n_points"] == 140 and summary["solver"] == "normalized_dlt"
+    for key in (
+        "mean_error_px",
+        "max_error_px",
+        "min_error_px",
+        "rms_error_px",
+        "loo_mean_error_mm",
+        "max_abs_dx_mm",
+        "max_abs_dy_mm",
+    ):
+        assert isinstance(summary[key], float)
+    assert summary["min_error_px"] <= summary["mean_error_px"] <= summary["max_error_px"]
+    assert summary["calibration_file"] == str(cal_path)
+    # The calibration file loads and agrees with the summary.
+    cal = planarcal.Calibration.load(cal_path)
+    assert cal.summary().mean_px == pytest.approx(summary["mean_error_px"])
+    # The report: the per-point table, the summary, and the two figures.
+    rows = (report / "points.csv").read_text().splitlines()
+    assert len(rows) == 141 and rows[0].startswith("point,row,col,world_x_mm")
+    first = rows[1].split(",")
+    assert first[:5] == ["1", "0", "0", "0.000000", "0.000000"]
+    assert json.loads((report / "summary.json").read_text())["n_points"] == 140
+    for name in ("detection.png", "deviations.png"):
+        picture = cv2.imread(str(report / name))
+        assert picture is not None and picture.shape[0] > 200, name
+    assert sorted(summary["report_files"]) == sorted(str(p) for p in report.iterdir())
+
+
+def test_calibrate_prints_a_readable_summary(images: dict[str, Path], tmp_path: Path) -> None:
+    result = _run(
+        "calibrate", images["board"], "-o", tmp_path / "c.json", "--solver", "a33", "--no-refine"
+    )
+    assert result.returncode == 0, result.stderr
+    out = result.stdout
+    assert "Found all 140 dots" in out and "Homography: a33, from 140 points" in out
+    assert "Leave-one-out error (mm)" in out and "Saved the calibration to" in out
+
+
+def test_calibrate_from_a_video_file_and_an_image_folder(
+    scene: synth.PaperScene, tmp_path: Path
+) -> None:
+    video = tmp_path / "board.avi"
+    frame = cv2.cvtColor(scene.calibration.image, cv2.COLOR_GRAY2BGR)
+    writer = cv2.VideoWriter(
+        str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (frame.shape[1], frame.shape[0])
+    )
+    assert writer.isOpened()
+    for _ in range(5):
+        writer.write(frame)
+    writer.release()
+    result = _run(
+        "calibrate", "--camera", video, "--frames", "4", "-o", tmp_path / "v.json", "--json"
+    )
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["n_points"] == 140
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(folder / f"f{i}.png"), frame)
+    result = _run("calibrate", "--camera", folder, "--frames", "3", "-o", tmp_path / "f.json")
+    assert result.returncode == 0, result.stderr
+    # Asking for more frames than the folder holds fails, naming the source.
+    result = _run("calibrate", "--camera", folder, "--frames", "5", "-o", tmp_path / "g.json")
+    assert result.returncode == 1 and "frames" in result.stderr
+    assert not (tmp_path / "g.json").exists()
+
+
+def test_calibrate_failures_say_what_is_wrong(images: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "c.json"
+    cases = [
+        (("calibrate", tmp_path / "missing.png", "-o", out), "no image file"),
+        (
+            ("calibrate", images["board"], "--cols", "10", "--rows", "8", "-o", out),
+            "no 10 x 8 circle grid",
+        ),
+        (("calibrate", images["objects"], "-o", out), "no 14 x 10 circle grid"),
+        (("calibrate", images["board"], "--pitch", "5", "-o", out), "diameter must be smaller"),
+        (("calibrate", "-o", out), "give an IMAGE"),
+    ]
+    junk = tmp_path / "junk.png"
+    junk.write_bytes(b"not a png at all")
+    cases.append((("calibrate", junk, "-o", out), "not an image OpenCV can decode"))
+    for args, message in cases:
+        result = _run(*args)
+        assert result.returncode == 1, (args, result.stderr)
+        assert message in result.stderr, (args, result.stderr)
+        assert "Traceback" not in result.stderr
+    assert not out.exists()
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    result = _run("calibrate", images["board"], "-o", blocker / "c.json")
+    assert result.returncode == 1 and "c.json" in result.stderr
+
+
+# ------------------------------------------------------------------------------------------
+# locate
+
+
+def test_locate_gives_objects_in_millimetres(
+    images: dict[str, Path], scene: synth.PaperScene, tmp_path: Path
+) -> None:
+    cal_path = tmp_path / "calib.json"
+    assert _run("calibrate", images["board"], "-o", cal_path).returncode == 0
+    annotated = tmp_path / "objects.png"
+    result = _run(
+        "locate", images["objects"], "--calibration", cal_path, "--json", "--annotate", annotated
+    )
+    assert result.returncode == 0, result.stderr
+    found = json.loads(result.stdout)["objects"]
+    truth = scene.objects.object_centroids_mm
+    assert len(found) == len(truth) == 10
+    assert [o["id"] for o in found] == list(range(1, 11))
+    for o in found:
+        gap = np.linalg.norm(truth - np.array(o["world_mm"]), axis=1).min()
+        assert gap < 0.6, o
+    picture = cv2.imread(str(annotated))
+    assert picture is not None and picture.shape[:2] == scene.objects.image.shape[:2]
+    # The readable table: one row per object.
+    table = _run("locate", images["objects"], "--calibration", cal_path).stdout
+    assert len([line for line in table.splitlines() if line.startswith("ID:")]) == 10
+
+
+def test_locate_refuses_a_corrupt_calibration(images: dict[str, Path], tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "planarcal-calibration", "version": 1, "homogr')
+    result = _run("locate", images["objects"], "--calibration", bad)
+    assert result.returncode == 1 and "not valid JSON" in result.stderr
+    result = _run("locate", images["objects"], "--calibration", tmp_path / "none.json")
+    assert result.returncode == 1 and "no calibration file" in result.stderr

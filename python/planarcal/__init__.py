@@ -1,6 +1,11 @@
 """planarcal: camera pixels to millimetres on a work plane.
 
-A Rust core (homography solvers, refinement, batch transforms) with two Python faces:
+The pipeline: print a ``CircleGridBoard`` (``planarcal board``), take a picture of it
+(``Camera``), find it (``detect_board``), calibrate (``Calibration``: the plane's homography
+and its report, saved as JSON), then locate objects in millimetres (``locate_objects``).
+``planarcal.synth`` renders scenes with exact truth to test a setup.
+
+Underneath, a Rust core (homography solvers, refinement, batch transforms) with two faces:
 
 * the native API: ``estimate_homography``, ``transform_points``, ``reprojection_errors``,
   ``reprojection_stats``, raising ``HomographyError`` / ``DegenerateError`` /
@@ -18,6 +23,9 @@ from planarcal._core import (
     PointAtInfinityError,
     __version__,
 )
+from planarcal.board import CircleGridBoard
+from planarcal.calibration import Calibration, CalibrationSummary
+from planarcal.capture import Camera
 from planarcal.cv import (
     LMEDS,
     RANSAC,
@@ -32,6 +40,14 @@ from planarcal.cv import (
     findHomography,
     perspectiveTransform,
 )
+from planarcal.detect import BoardDetection, detect_board
+from planarcal.errors import (
+    BoardError,
+    BoardNotFoundError,
+    CalibrationFileError,
+    CameraError,
+    ImageError,
+)
 from planarcal.homography import (
     SOLVERS,
     ReprojectionStats,
@@ -42,6 +58,8 @@ from planarcal.homography import (
     reprojection_stats,
     transform_points,
 )
+from planarcal.images import load_image
+from planarcal.objects import DetectedObject, detect_objects, locate_objects
 
 # A child forked after the thread pool started must not use it (its threads did not survive
 # the fork): the core then runs every batch on the calling thread.
@@ -60,15 +78,30 @@ __all__ = [
     "USAC_MAGSAC",
     "USAC_PARALLEL",
     "USAC_PROSAC",
+    "BoardDetection",
+    "BoardError",
+    "BoardNotFoundError",
+    "Calibration",
+    "CalibrationFileError",
+    "CalibrationSummary",
+    "Camera",
+    "CameraError",
+    "CircleGridBoard",
     "DegenerateError",
+    "DetectedObject",
     "HomographyError",
+    "ImageError",
     "PointAtInfinityError",
     "ReprojectionStats",
     "Solver",
     "__version__",
+    "detect_board",
+    "detect_objects",
     "error_stats",
     "estimate_homography",
     "findHomography",
+    "load_image",
+    "locate_objects",
     "perspectiveTransform",
     "reprojection_errors",
     "reprojection_stats",
