@@ -81,12 +81,12 @@ def detect_board(
     Returns the centre of every dot in the board's order; raises BoardNotFoundError, saying
     what was seen and what to try, when the image does not show the whole board.
     """
+    if polarity not in ("auto", "dark", "light"):
+        raise ValueError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
     grey = as_grey(image)
     polarities: tuple[Literal["dark", "light"], ...] = (
         ("dark", "light") if polarity == "auto" else (polarity,)
     )
-    if polarity not in ("auto", "dark", "light"):
-        raise ValueError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
     refusals: list[str] = []
     for pol in polarities:
         ink_dark = grey if pol == "dark" else 255.0 - grey
@@ -577,8 +577,6 @@ def _explain(
     polarities: tuple[Literal["dark", "light"], ...],
     refusals: list[str],
 ) -> str:
-    import cv2
-
     u8 = np.clip(np.rint(grey), 0, 255).astype(np.uint8)
     detector = _blob_detector(u8.shape, board)
     seen = []
@@ -621,5 +619,4 @@ def _explain(
     lines.append("Try: " + "; ".join(hints) + ".")
     if refusals:
         lines.append("Candidates refused: " + " | ".join(refusals[:4]))
-    del cv2
     return " ".join(lines)
