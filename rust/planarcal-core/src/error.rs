@@ -35,6 +35,13 @@ pub enum HomographyError {
         y: f64,
     },
 
+    #[error("{name} must be {expected}, got {value}")]
+    InvalidParameter {
+        name: &'static str,
+        value: f64,
+        expected: &'static str,
+    },
+
     #[error("the homography matrix has a non-finite entry at row {row}, column {col}")]
     NonFiniteMatrix { row: usize, col: usize },
 

@@ -126,6 +126,19 @@ pub fn estimate(src: &[Point], dst: &[Point], solver: Solver, refine: bool) -> R
     })
 }
 
+/// Refines a given homography (e.g. a robust estimate) on the correspondences by
+/// Levenberg-Marquardt, skipping the linear solve; checked, oriented and scaled like
+/// `estimate`'s results.
+pub fn refine_homography(src: &[Point], dst: &[Point], start: &Matrix3<f64>) -> Result<Estimate> {
+    let c = Correspondences::new(src, dst)?;
+    let (hn, report) = levenberg_marquardt(&c, &c.normalize_h(start));
+    check_not_singular(&hn)?;
+    Ok(Estimate {
+        h: orient_and_scale(&denormalize(&c, &hn)?, src)?,
+        refinement: Some(report),
+    })
+}
+
 /// Fits H with dst ~ H src; see `estimate`.
 pub fn estimate_homography(
     src: &[Point],
@@ -263,6 +276,17 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn refining_a_start_reaches_the_same_optimum() {
+        let (src, dst, _) = sample_problem(80, 400.0, 30.0);
+        let dst = noisy(&dst, 0.5, 9);
+        let gold = estimate(&src, &dst, Solver::NormalizedDlt, true).unwrap();
+        let rough = estimate_homography(&src, &dst, Solver::A33, false).unwrap();
+        let refined = refine_homography(&src, &dst, &rough).unwrap();
+        assert!(relative_h_error(&refined.h, &gold.h) < 1e-8);
+        assert!(refined.refinement.is_some());
     }
 
     #[test]

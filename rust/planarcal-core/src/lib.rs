@@ -18,6 +18,7 @@ pub mod normalize;
 pub mod orientation;
 pub mod refine;
 pub mod reprojection;
+pub mod robust;
 pub mod threads;
 pub mod transform;
 
@@ -28,7 +29,13 @@ mod testing;
 pub type Point = [f64; 2];
 
 pub use error::{HomographyError, PointSet, Result};
-pub use estimate::{estimate, estimate_homography, with_unit_h33, Estimate, Solver, UnknownSolver};
+pub use estimate::{
+    estimate, estimate_homography, refine_homography, with_unit_h33, Estimate, Solver,
+    UnknownSolver,
+};
 pub use refine::RefineReport;
 pub use reprojection::{reprojection_errors_into, ErrorStats};
+pub use robust::{
+    estimate_robust, estimate_robust_batch, Method, RobustOptions, RobustResult, StopReason,
+};
 pub use transform::{invert, Homography, Orientation, PointStatus, Projective, TransformReport};

@@ -30,13 +30,19 @@ struct Evaluation {
 }
 
 /// Cost, J^T J and J^T r at p = (h11 .. h32) with h33 = 1; None if a point reaches w <= 0.
-fn evaluate(c: &Correspondences, p: &Vec8) -> Option<Evaluation> {
-    // Sums weighted by a = 1/w^2: p p^T (XX, XY, X, YY, Y, 1); x^ p q^T and y^ p q^T with
-    // q = (X, Y) (XX, XY, YX, YY, X, Y); (x^2 + y^2) q q^T (XX, XY, YY).
-    let (mut spp, mut sxpq, mut sypq, mut srqq) = ([0.0; 6], [0.0; 6], [0.0; 6], [0.0; 3]);
-    let (mut g1, mut g2, mut g3) = ([0.0; 3], [0.0; 3], [0.0; 2]);
+/// `pts` holds the normalised pairs (X, Y, x, y).
+fn evaluate(pts: &[[f64; 4]], p: &Vec8) -> Option<Evaluation> {
+    // Sums weighted by a = 1/w^2 (scalars, so the compiler keeps them in registers):
+    // p p^T (XX, XY, X, YY, Y, 1); x^ p q^T and y^ p q^T with q = (X, Y); (x^2 + y^2) q q^T.
+    let (mut a_xx, mut a_xy, mut a_x, mut a_yy, mut a_y, mut a_1) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut bx_xx, mut bx_xy, mut bx_yy, mut bx_x, mut bx_y) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut by_xx, mut by_xy, mut by_yy, mut by_x, mut by_y) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut c_xx, mut c_xy, mut c_yy) = (0.0, 0.0, 0.0);
+    let (mut g1x, mut g1y, mut g1) = (0.0, 0.0, 0.0);
+    let (mut g2x, mut g2y, mut g2) = (0.0, 0.0, 0.0);
+    let (mut g3x, mut g3y) = (0.0, 0.0);
     let mut cost = 0.0;
-    for ([sx, sy], [dx, dy]) in c.normalized_pairs() {
+    for &[sx, sy, dx, dy] in pts {
         let w = p[6] * sx + p[7] * sy + 1.0;
         if !(w > 0.0) {
             return None;
@@ -47,36 +53,44 @@ fn evaluate(c: &Correspondences, p: &Vec8) -> Option<Evaluation> {
         let (rx, ry) = (xh - dx, yh - dy);
         cost += rx * rx + ry * ry;
         let a = iw * iw;
-        let pp = [sx * sx, sx * sy, sx, sy * sy, sy, 1.0];
-        let pq = [sx * sx, sx * sy, sy * sx, sy * sy, sx, sy];
-        for k in 0..6 {
-            spp[k] += a * pp[k];
-            sxpq[k] += a * xh * pq[k];
-            sypq[k] += a * yh * pq[k];
-        }
-        let r2 = a * (xh * xh + yh * yh);
-        srqq[0] += r2 * sx * sx;
-        srqq[1] += r2 * sx * sy;
-        srqq[2] += r2 * sy * sy;
+        let (ax, ay) = (a * sx, a * sy);
+        a_xx += ax * sx;
+        a_xy += ax * sy;
+        a_x += ax;
+        a_yy += ay * sy;
+        a_y += ay;
+        a_1 += a;
+        let (axx, axy, ayy) = (ax * sx, ax * sy, ay * sy);
+        bx_xx += xh * axx;
+        bx_xy += xh * axy;
+        bx_yy += xh * ayy;
+        bx_x += xh * ax;
+        bx_y += xh * ay;
+        by_xx += yh * axx;
+        by_xy += yh * axy;
+        by_yy += yh * ayy;
+        by_x += yh * ax;
+        by_y += yh * ay;
+        let r2 = xh * xh + yh * yh;
+        c_xx += r2 * axx;
+        c_xy += r2 * axy;
+        c_yy += r2 * ayy;
         let (ex, ey) = (rx * iw, ry * iw);
         let e3 = -(xh * rx + yh * ry) * iw;
-        let pv = [sx, sy, 1.0];
-        for k in 0..3 {
-            g1[k] += ex * pv[k];
-            g2[k] += ey * pv[k];
-        }
-        g3[0] += e3 * sx;
-        g3[1] += e3 * sy;
+        g1x += ex * sx;
+        g1y += ex * sy;
+        g1 += ex;
+        g2x += ey * sx;
+        g2y += ey * sy;
+        g2 += ey;
+        g3x += e3 * sx;
+        g3y += e3 * sy;
     }
     let mut jtj = Mat8::zeros();
-    let p3 = [
-        [spp[0], spp[1], spp[2]],
-        [spp[1], spp[3], spp[4]],
-        [spp[2], spp[4], spp[5]],
-    ];
+    let p3 = [[a_xx, a_xy, a_x], [a_xy, a_yy, a_y], [a_x, a_y, a_1]];
     // Rows of p q^T: (X X, X Y), (Y X, Y Y), (X, Y).
-    let pq_x = [[sxpq[0], sxpq[1]], [sxpq[2], sxpq[3]], [sxpq[4], sxpq[5]]];
-    let pq_y = [[sypq[0], sypq[1]], [sypq[2], sypq[3]], [sypq[4], sypq[5]]];
+    let pq_x = [[bx_xx, bx_xy], [bx_xy, bx_yy], [bx_x, bx_y]];
+    let pq_y = [[by_xx, by_xy], [by_xy, by_yy], [by_x, by_y]];
     for i in 0..3 {
         for j in 0..3 {
             jtj[(i, j)] = p3[i][j];
@@ -89,11 +103,11 @@ fn evaluate(c: &Correspondences, p: &Vec8) -> Option<Evaluation> {
             jtj[(6 + j, 3 + i)] = -pq_y[i][j];
         }
     }
-    jtj[(6, 6)] = srqq[0];
-    jtj[(6, 7)] = srqq[1];
-    jtj[(7, 6)] = srqq[1];
-    jtj[(7, 7)] = srqq[2];
-    let jtr = Vec8::from_column_slice(&[g1[0], g1[1], g1[2], g2[0], g2[1], g2[2], g3[0], g3[1]]);
+    jtj[(6, 6)] = c_xx;
+    jtj[(6, 7)] = c_xy;
+    jtj[(7, 6)] = c_xy;
+    jtj[(7, 7)] = c_yy;
+    let jtr = Vec8::from_column_slice(&[g1x, g1y, g1, g2x, g2y, g2, g3x, g3y]);
     Some(Evaluation { cost, jtj, jtr })
 }
 
@@ -138,7 +152,11 @@ pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f
     let Some(mut p) = to_params(hn) else {
         return unchanged(0);
     };
-    let Some(mut cur) = evaluate(c, &p) else {
+    let pts: Vec<[f64; 4]> = c
+        .normalized_pairs()
+        .map(|([sx, sy], [dx, dy])| [sx, sy, dx, dy])
+        .collect();
+    let Some(mut cur) = evaluate(&pts, &p) else {
         return unchanged(0);
     };
     let initial_cost = cur.cost;
@@ -175,7 +193,7 @@ pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f
                 damped[k] *= mu * cur.jtj[(k, k)];
             }
             let predicted = step.dot(&(damped - cur.jtr));
-            let trial = evaluate(c, &trial_p).filter(|t| t.cost.is_finite());
+            let trial = evaluate(&pts, &trial_p).filter(|t| t.cost.is_finite());
             match trial {
                 Some(t) if t.cost < cur.cost => {
                     let rho = (cur.cost - t.cost) / predicted.max(f64::MIN_POSITIVE);
@@ -222,14 +240,19 @@ mod tests {
         let dst = noisy(&dst, 0.05, 1);
         let c = Correspondences::new(&src, &dst).unwrap();
         let p = to_params(&normalized_dlt(&c).unwrap()).unwrap();
-        let e = evaluate(&c, &p).unwrap();
+        let pts: Vec<[f64; 4]> = c
+            .normalized_pairs()
+            .map(|(s, d)| [s[0], s[1], d[0], d[1]])
+            .collect();
+        let e = evaluate(&pts, &p).unwrap();
         // The gradient of cost/2 is J^T r.
         for k in 0..8 {
             let h = 1e-6;
             let (mut a, mut b) = (p, p);
             a[k] += h;
             b[k] -= h;
-            let fd = (evaluate(&c, &a).unwrap().cost - evaluate(&c, &b).unwrap().cost) / (4.0 * h);
+            let fd =
+                (evaluate(&pts, &a).unwrap().cost - evaluate(&pts, &b).unwrap().cost) / (4.0 * h);
             assert!(
                 (fd - e.jtr[k]).abs() < 1e-6 * (1.0 + fd.abs()),
                 "k={k}: {fd} vs {}",
@@ -251,7 +274,11 @@ mod tests {
         assert!((report.final_cost - after).abs() < 1e-9 * after);
         assert!(report.iterations < MAX_ITERATIONS);
         // At the optimum the gradient vanishes.
-        let e = evaluate(&c, &to_params(&refined).unwrap()).unwrap();
+        let pts: Vec<[f64; 4]> = c
+            .normalized_pairs()
+            .map(|(s, d)| [s[0], s[1], d[0], d[1]])
+            .collect();
+        let e = evaluate(&pts, &to_params(&refined).unwrap()).unwrap();
         assert!(e.jtr.norm() < 1e-10 * (1.0 + e.cost));
     }
 

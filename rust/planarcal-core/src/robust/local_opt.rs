@@ -1,0 +1,100 @@
+//! Local optimisation of a new best model (LO-RANSAC, Chum et al. 2003; the iterated,
+//! shrinking-threshold least squares of Lebeda et al. 2012): refit the model to its inliers
+//! by the normalised DLT at a generous threshold, then at tighter ones, keeping the best by
+//! MSAC cost. A minimal sample with three inliers and one outlier gives a model that still
+//! agrees with the inliers near the three; refitting to those grows the set step by step to
+//! the true model. This is what makes 90% outliers tractable with a few thousand samples.
+
+use nalgebra::Matrix3;
+
+use crate::estimate::{estimate, Solver};
+use crate::Point;
+
+use super::data::Data;
+
+/// Threshold multipliers of the successive refits: a well-supported model only needs
+/// polishing; a weakly supported one may be a near miss (three inliers and an outlier), which
+/// agrees with the truth over a wider band than the threshold and grows into it from there
+/// (measured at 90% outliers: starting at 4 t repairs 15% of such models, at 64 t 60%).
+const POLISH: [f64; 2] = [2.0, 1.0];
+const GROW: [f64; 7] = [64.0, 32.0, 16.0, 8.0, 4.0, 2.0, 1.0];
+/// A model with fewer inliers than this fraction of the points is grown rather than polished.
+const WEAK_SUPPORT: f64 = 0.02;
+/// Refits at the final threshold until the inlier set settles.
+const MAX_SETTLE: usize = 2;
+
+/// Most points a local refit uses: beyond this a least-squares fit is no better for scoring
+/// (the final refinement uses all inliers); evenly spaced in index order, deterministic.
+const MAX_FIT_POINTS: usize = 200;
+
+/// The least-squares homography (normalised coordinates) through the given points.
+pub fn fit(data: &Data, idx: &[u32]) -> Option<[f64; 9]> {
+    if idx.len() < 4 {
+        return None;
+    }
+    let stride = idx.len().div_ceil(MAX_FIT_POINTS);
+    let src: Vec<Point> = idx
+        .iter()
+        .step_by(stride)
+        .map(|&i| data.src[i as usize])
+        .collect();
+    let dst: Vec<Point> = idx
+        .iter()
+        .step_by(stride)
+        .map(|&i| data.dst[i as usize])
+        .collect();
+    let h = estimate(&src, &dst, Solver::NormalizedDlt, false).ok()?.h;
+    Some(to_array(&h))
+}
+
+pub fn to_array(h: &Matrix3<f64>) -> [f64; 9] {
+    [
+        h[(0, 0)],
+        h[(0, 1)],
+        h[(0, 2)],
+        h[(1, 0)],
+        h[(1, 1)],
+        h[(1, 2)],
+        h[(2, 0)],
+        h[(2, 1)],
+        h[(2, 2)],
+    ]
+}
+
+/// The locally optimised model and its (inlier count, MSAC cost), if it beats `cost`.
+pub fn optimize(
+    data: &Data,
+    h: &[f64; 9],
+    inliers: usize,
+    cost: f64,
+) -> Option<([f64; 9], usize, f64)> {
+    let schedule: &[f64] = if (inliers as f64) < WEAK_SUPPORT * data.n as f64 {
+        &GROW
+    } else {
+        &POLISH
+    };
+    let mut best: Option<([f64; 9], usize, f64)> = None;
+    let mut best_cost = cost;
+    let mut current = *h;
+    let mut last: Vec<u32> = Vec::new();
+    let steps = schedule.iter().chain(std::iter::repeat_n(&1.0, MAX_SETTLE));
+    for (step, &m) in steps.enumerate() {
+        let idx = data.inliers(&current, data.t2 * m * m);
+        if idx.len() < 8 || (step >= schedule.len() && idx == last) {
+            break;
+        }
+        let Some(next) = fit(data, &idx) else {
+            break;
+        };
+        last = idx;
+        current = next;
+        let (count, c) = data.msac(&current);
+        if c < best_cost {
+            best_cost = c;
+            best = Some((current, count, c));
+        } else if m == 1.0 {
+            break; // at the final threshold and no better: settled
+        }
+    }
+    best
+}

@@ -1,0 +1,551 @@
+//! Robust estimation: homographies from correspondences with outliers.
+//!
+//! The MSAC search follows USAC (Raguram et al. 2013): minimal samples drawn uniformly (or by
+//! PROSAC when quality scores rank the correspondences), cheap sample checks, the 4-point
+//! solve, SPRT early rejection of bad hypotheses, the truncated-quadratic (MSAC) cost,
+//! local optimisation of every new best model, and termination adapted to the best model's
+//! inlier ratio. The best model is then refitted to its inliers (normalised DLT, then
+//! Levenberg-Marquardt) and the inlier mask recomputed from the final H, so the two agree.
+//! LMedS minimises the median squared residual instead, and needs no threshold.
+//!
+//! Deterministic: samples are drawn serially from a seeded PCG32 stream and scored in fixed
+//! batches, in parallel where it pays, with every decision taken in sample order between
+//! batches: the same inputs and seed give bit-identical results on any number of threads.
+
+mod data;
+mod guided;
+mod local_opt;
+mod minimal;
+mod sampler;
+mod sprt;
+
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+
+use crate::correspondences::check_finite;
+use crate::error::{HomographyError, PointSet, Result};
+use crate::estimate::{estimate, refine_homography, Solver};
+use crate::threads;
+use crate::Point;
+
+use data::{Data, Verdict};
+pub use sampler::Pcg32;
+use sampler::{distinct_sample, Prosac};
+use sprt::{plain_iterations_needed, Sprt};
+
+/// How the robust search scores a hypothesis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Truncated quadratic cost with an inlier threshold (MSAC), SPRT and local optimisation.
+    #[default]
+    Msac,
+    /// Least median of squares: no threshold; fails beyond 50% outliers.
+    Lmeds,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobustOptions {
+    /// Largest transfer error (destination units, e.g. px) of an inlier (MSAC only).
+    pub threshold: f64,
+    /// Probability that the search has drawn an all-inlier sample when it stops.
+    pub confidence: f64,
+    /// Most samples drawn.
+    pub max_iters: usize,
+    pub seed: u64,
+    /// Quality of each correspondence (higher is better): PROSAC samples the best first.
+    pub scores: Option<Vec<f64>>,
+    pub method: Method,
+    /// Score hypotheses on several threads (results are the same either way).
+    pub parallel: bool,
+}
+
+impl Default for RobustOptions {
+    fn default() -> Self {
+        RobustOptions {
+            threshold: 3.0,
+            confidence: 0.999,
+            max_iters: 10_000,
+            seed: 0,
+            scores: None,
+            method: Method::Msac,
+            parallel: true,
+        }
+    }
+}
+
+/// Why the search stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopReason {
+    /// The confidence was reached.
+    Converged,
+    /// max_iters samples were drawn before the confidence was reached.
+    MaxIterations,
+    /// No model had more support than chance gives: no homography found.
+    NoConsensus,
+}
+
+impl StopReason {
+    pub fn name(self) -> &'static str {
+        match self {
+            StopReason::Converged => "converged",
+            StopReason::MaxIterations => "max_iterations",
+            StopReason::NoConsensus => "no_consensus",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobustResult {
+    /// The homography (oriented, |h33| = 1), or None when no consensus was found.
+    pub h: Option<Matrix3<f64>>,
+    /// Inlier mask under the final H (all false without one).
+    pub inliers: Vec<bool>,
+    pub n_inliers: usize,
+    /// Samples drawn.
+    pub iterations: usize,
+    pub stop: StopReason,
+    /// RMS transfer error of the inliers under H (destination units); NaN without H.
+    pub rms_inlier_error: f64,
+    /// The inlier threshold the mask uses (LMedS derives its own from the median).
+    pub threshold: f64,
+    /// Local optimisations run.
+    pub lo_runs: usize,
+}
+
+impl RobustResult {
+    fn failure(n: usize, iterations: usize, threshold: f64, lo_runs: usize) -> Self {
+        RobustResult {
+            h: None,
+            inliers: vec![false; n],
+            n_inliers: 0,
+            iterations,
+            stop: StopReason::NoConsensus,
+            rms_inlier_error: f64::NAN,
+            threshold,
+            lo_runs,
+        }
+    }
+}
+
+/// Hypotheses drawn and scored together: decisions happen between batches. The first batch
+/// is small so that SPRT sharpens as soon as a model is found.
+const BATCH: usize = 64;
+const FIRST_BATCH: usize = 16;
+/// Below this many points per batch, scoring on one thread is faster than splitting it.
+const PARALLEL_MIN_WORK: usize = 64 * 2_000;
+/// Smallest |cross product| of a sample triangle in normalised units (collinear below).
+const MIN_SAMPLE_AREA: f64 = 1e-6;
+/// Samples drawn uniformly before the search may switch to guided sampling, and the inlier
+/// ratio of the best model below which it does (without caller-given scores).
+const PROBE: usize = 512;
+const GUIDE_BELOW: f64 = 0.3;
+/// Fewest points for which neighbourhoods say anything.
+const GUIDE_MIN_POINTS: usize = 100;
+
+/// SPRT's starting inlier ratio and agreement rate of wrong models, before any model is found.
+const INITIAL_EPSILON: f64 = 0.01;
+const INITIAL_DELTA: f64 = 0.001;
+/// Chance that a wrong model reaches the required support, over all hypotheses tested.
+const NON_RANDOMNESS: f64 = 0.01;
+
+fn check_options(o: &RobustOptions, n: usize) -> Result<()> {
+    let bad = |name, value, expected| {
+        Err(HomographyError::InvalidParameter {
+            name,
+            value,
+            expected,
+        })
+    };
+    if o.method == Method::Msac && !(o.threshold > 0.0 && o.threshold.is_finite()) {
+        return bad("threshold", o.threshold, "a positive, finite distance");
+    }
+    if !(o.confidence > 0.0 && o.confidence < 1.0) {
+        return bad("confidence", o.confidence, "strictly between 0 and 1");
+    }
+    if o.max_iters == 0 {
+        return bad("max_iters", 0.0, "at least 1");
+    }
+    if let Some(s) = &o.scores {
+        if s.len() != n {
+            return Err(HomographyError::LengthMismatch {
+                src: n,
+                dst: s.len(),
+            });
+        }
+        if let Some(v) = s.iter().find(|v| !v.is_finite()) {
+            return bad("scores", *v, "finite numbers");
+        }
+    }
+    Ok(())
+}
+
+/// Fits H with dst ~ H src despite outliers.
+pub fn estimate_robust(
+    src: &[Point],
+    dst: &[Point],
+    options: &RobustOptions,
+) -> Result<RobustResult> {
+    if src.len() != dst.len() {
+        return Err(HomographyError::LengthMismatch {
+            src: src.len(),
+            dst: dst.len(),
+        });
+    }
+    let n = src.len();
+    if n < 4 {
+        return Err(HomographyError::TooFewPoints { got: n });
+    }
+    check_finite(src, PointSet::Source)?;
+    check_finite(dst, PointSet::Destination)?;
+    check_options(options, n)?;
+    let mut rng = Pcg32::new(options.seed, 0);
+    let Some(data) = Data::new(src, dst, options.threshold, &mut rng) else {
+        // Every source (or destination) point is the same point.
+        return Ok(RobustResult::failure(n, 0, options.threshold, 0));
+    };
+    let search = match options.method {
+        Method::Msac => msac_search(&data, options, &mut rng),
+        Method::Lmeds => lmeds_search(&data, options, &mut rng),
+    };
+    Ok(finish(&data, src, dst, search, options))
+}
+
+/// Estimates many independent problems at once, in parallel (each problem on one thread).
+pub fn estimate_robust_batch(
+    problems: &[(&[Point], &[Point])],
+    options: &RobustOptions,
+) -> Vec<Result<RobustResult>> {
+    let serial = RobustOptions {
+        parallel: false,
+        ..options.clone()
+    };
+    let run = |&(s, d): &(&[Point], &[Point])| estimate_robust(s, d, &serial);
+    if options.parallel && problems.len() > 1 && threads::pool_allowed() {
+        problems.par_iter().map(run).collect()
+    } else {
+        problems.iter().map(run).collect()
+    }
+}
+
+/// What a search found: the best model in normalised coordinates, and how it went.
+struct Search {
+    best: Option<Model>,
+    iterations: usize,
+    stop: StopReason,
+    /// Squared inlier threshold in normalised destination units.
+    t2: f64,
+    /// Rate at which points agree with a wrong model (for the non-randomness test).
+    delta: f64,
+    lo_runs: usize,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Model {
+    h: [f64; 9],
+    inliers: usize,
+    /// MSAC cost (lower is better), or the median squared residual for LMedS.
+    cost: f64,
+}
+
+/// The sample's correspondences, gathered from the normalised data.
+fn gather(data: &Data, s: &[u32; 4]) -> ([[f64; 2]; 4], [[f64; 2]; 4]) {
+    let src = s.map(|i| data.src[i as usize]);
+    let dst = s.map(|i| data.dst[i as usize]);
+    (src, dst)
+}
+
+fn hypothesis(data: &Data, s: &[u32; 4]) -> Option<[f64; 9]> {
+    let (src, dst) = gather(data, s);
+    if !minimal::sample_is_valid(&src, &dst, MIN_SAMPLE_AREA) {
+        return None;
+    }
+    minimal::four_point(&src, &dst)
+}
+
+/// Scores a batch, in parallel when the work is large enough (same results either way).
+fn score_batch<T: Send>(
+    data: &Data,
+    samples: &[[u32; 4]],
+    parallel: bool,
+    f: impl Fn(&[u32; 4]) -> T + Sync + Send,
+) -> Vec<T> {
+    if parallel && samples.len() * data.n >= PARALLEL_MIN_WORK && threads::pool_allowed() {
+        samples.par_iter().map(f).collect()
+    } else {
+        samples.iter().map(f).collect()
+    }
+}
+
+/// A ranking of the correspondences by descending score (ties by index).
+fn ranking(scores: &[f64]) -> Vec<u32> {
+    let mut r: Vec<u32> = (0..scores.len() as u32).collect();
+    r.sort_by(|&a, &b| {
+        scores[b as usize]
+            .total_cmp(&scores[a as usize])
+            .then(a.cmp(&b))
+    });
+    r
+}
+
+fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
+    let n = data.n as u32;
+    let mut rank = o.scores.as_deref().map(ranking);
+    let mut prosac = rank.as_ref().map(|_| Prosac::new(n, o.max_iters as u64));
+    // Start by letting through any model with more support than chance: a model from three
+    // inliers and one outlier agrees with only a few points, and local optimisation grows it
+    // into the true model. The test sharpens as soon as a best model exists.
+    let mut sprt = Sprt::new(INITIAL_EPSILON, INITIAL_DELTA);
+    let mut best: Option<Model> = None;
+    let mut k_max = o.max_iters as f64;
+    let mut iterations = 0usize;
+    let (mut rejected_tested, mut rejected_agreeing) = (0usize, 0usize);
+    let mut lo_runs = 0;
+    let mut samples = Vec::with_capacity(BATCH);
+    while (iterations as f64) < k_max {
+        let batch = BATCH
+            .min((k_max - iterations as f64).ceil() as usize)
+            .max(1);
+        samples.clear();
+        for _ in 0..batch {
+            let mut s = [0u32; 4];
+            match (&mut prosac, &rank) {
+                (Some(p), Some(r)) => {
+                    p.sample(rng, &mut s);
+                    s = s.map(|i| r[i as usize]);
+                }
+                _ => distinct_sample(rng, n, &mut s),
+            }
+            samples.push(s);
+        }
+        iterations += batch;
+        let test = sprt;
+        let verdicts = score_batch(data, &samples, o.parallel, |s| {
+            hypothesis(data, s).map(|h| (h, data.sprt(&h, test.log_in, test.log_out, test.log_a)))
+        });
+        for (h, verdict) in verdicts.into_iter().flatten() {
+            match verdict {
+                Verdict::Rejected { tested, inliers } => {
+                    rejected_tested += tested;
+                    rejected_agreeing += inliers;
+                }
+                Verdict::Accepted { inliers } => {
+                    // SPRT counted the inliers: a model with clearly fewer than the best's
+                    // cannot have a lower MSAC cost in practice; skip its full scoring.
+                    if best.is_some_and(|b| (inliers as f64) < 0.95 * b.inliers as f64) {
+                        continue;
+                    }
+                    let (inliers, cost) = data.msac(&h);
+                    if best.is_some_and(|b| cost >= b.cost) {
+                        continue;
+                    }
+                    let mut model = Model { h, inliers, cost };
+                    if inliers >= 8 {
+                        lo_runs += 1;
+                        if let Some((h, inliers, cost)) =
+                            local_opt::optimize(data, &h, inliers, cost)
+                        {
+                            model = Model { h, inliers, cost };
+                        }
+                    }
+                    best = Some(model);
+                    let epsilon = model.inliers as f64 / data.n as f64;
+                    sprt = Sprt::new(epsilon, sprt.delta);
+                    k_max = (o.max_iters as f64).min(sprt.iterations_needed(o.confidence, epsilon));
+                }
+            }
+        }
+        // Re-estimate delta, the rate at which points agree with bad models.
+        if rejected_tested >= 1_000 {
+            let delta = rejected_agreeing as f64 / rejected_tested as f64;
+            if (delta - sprt.delta).abs() > 0.1 * sprt.delta {
+                sprt = Sprt::new(sprt.epsilon, delta);
+                if let Some(b) = best {
+                    let epsilon = b.inliers as f64 / data.n as f64;
+                    k_max = (o.max_iters as f64).min(sprt.iterations_needed(o.confidence, epsilon));
+                }
+            }
+        }
+    }
+    let stop = if iterations >= o.max_iters
+        && best.is_some_and(|b| {
+            sprt.iterations_needed(o.confidence, b.inliers as f64 / data.n as f64)
+                > o.max_iters as f64
+        }) {
+        StopReason::MaxIterations
+    } else {
+        StopReason::Converged
+    };
+    Search {
+        best,
+        iterations,
+        stop,
+        t2: data.t2,
+        delta: geometric_delta(data),
+        lo_runs,
+    }
+}
+
+fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
+    let n = data.n as u32;
+    // LMedS assumes at most half the points are outliers.
+    let k = (o.max_iters as f64).min(plain_iterations_needed(o.confidence, 0.5)) as usize;
+    let mut best: Option<Model> = None;
+    let mut iterations = 0;
+    let mut samples = Vec::with_capacity(BATCH);
+    while iterations < k {
+        let batch = BATCH.min(k - iterations);
+        samples.clear();
+        for _ in 0..batch {
+            let mut s = [0u32; 4];
+            distinct_sample(rng, n, &mut s);
+            samples.push(s);
+        }
+        iterations += batch;
+        let medians = score_batch(data, &samples, o.parallel, |s| {
+            let h = hypothesis(data, s)?;
+            let mut r = Vec::with_capacity(data.n);
+            data.residuals2_into(&h, &mut r);
+            let mid = r.len() / 2;
+            let (_, m, _) = r.select_nth_unstable_by(mid, f64::total_cmp);
+            let median = *m;
+            median.is_finite().then_some((h, median))
+        });
+        for (h, median) in medians.into_iter().flatten() {
+            if best.is_none_or(|b| median < b.cost) {
+                best = Some(Model {
+                    h,
+                    inliers: 0,
+                    cost: median,
+                });
+            }
+        }
+    }
+    // The robust scale: 1.4826 (1 + 5 / (n - 4)) sqrt(median); inliers within 2.5 sigma.
+    let t2 = best.map_or(0.0, |b| {
+        let sigma = 1.4826 * (1.0 + 5.0 / (data.n as f64 - 4.0).max(1.0)) * b.cost.sqrt();
+        (2.5 * sigma).powi(2)
+    });
+    // Exact data has a zero median: keep a threshold at the rounding of the coordinates.
+    let t2 = t2.max(1e-24);
+    let best = best.map(|b| Model {
+        inliers: data.inliers(&b.h, t2).len(),
+        ..b
+    });
+    Search {
+        best,
+        iterations,
+        stop: StopReason::Converged,
+        t2,
+        delta: geometric_delta(data),
+        lo_runs: 0,
+    }
+}
+
+/// The chance that a point falls within the threshold of a wrong model's prediction: the
+/// threshold disc over the area the destination points spread over (normalised units).
+fn geometric_delta(data: &Data) -> f64 {
+    (std::f64::consts::PI * data.t2 / data.dst_area).clamp(1e-9, 0.5)
+}
+
+/// The smallest support a model needs before it counts as found: the least i for which a
+/// wrong model (Poisson with rate (n - 4) delta beyond its 4 sample points) reaches i with
+/// probability below NON_RANDOMNESS / hypotheses tested.
+fn minimum_support(n: usize, delta: f64, hypotheses: usize) -> usize {
+    if n <= 4 {
+        return 4;
+    }
+    let lambda = (n - 4) as f64 * delta;
+    let limit = NON_RANDOMNESS / hypotheses.max(1) as f64;
+    let (mut term, mut below) = ((-lambda).exp(), 0.0);
+    for j in 0..=(n - 4) {
+        // P(X >= j) = 1 - P(X < j)
+        if 1.0 - below < limit {
+            return 4 + j.max(1);
+        }
+        below += term;
+        term *= lambda / (j + 1) as f64;
+    }
+    n + 1
+}
+
+/// Transfer errors under an oriented H (infinite behind the horizon).
+fn errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Vec<f64> {
+    let mut out = vec![0.0; src.len()];
+    let _ = crate::reprojection::reprojection_errors_into(
+        h,
+        src,
+        dst,
+        &mut out,
+        crate::transform::Orientation::Oriented,
+    );
+    out
+}
+
+/// The final model: refined on its inliers in the caller's units (Levenberg-Marquardt from
+/// the search's locally optimised model, itself a least-squares fit), the mask recomputed
+/// from it until the two agree (at most 3 rounds).
+fn finish(
+    data: &Data,
+    src: &[Point],
+    dst: &[Point],
+    search: Search,
+    o: &RobustOptions,
+) -> RobustResult {
+    let n = data.n;
+    let threshold = search.t2.sqrt() / data.dst_norm.scale;
+    let Some(best) = search.best else {
+        return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
+    };
+    let support = minimum_support(n, search.delta, search.iterations);
+    if best.inliers < support {
+        return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
+    }
+    let mut idx = data.inliers(&best.h, search.t2);
+    let mut start = data.denormalize(&best.h);
+    let mut fitted = None;
+    for _ in 0..3 {
+        let s: Vec<Point> = idx.iter().map(|&i| src[i as usize]).collect();
+        let d: Vec<Point> = idx.iter().map(|&i| dst[i as usize]).collect();
+        // From the search's model; a fresh linear fit if that cannot be refined.
+        let fit = refine_homography(&s, &d, &start)
+            .or_else(|_| estimate(&s, &d, Solver::NormalizedDlt, true));
+        let Ok(fit) = fit else {
+            break;
+        };
+        start = fit.h;
+        let e = errors(&fit.h, src, dst);
+        let next: Vec<u32> = (0..n as u32)
+            .filter(|&i| e[i as usize] <= threshold)
+            .collect();
+        fitted = Some((fit.h, e));
+        if next == idx {
+            break;
+        }
+        idx = next;
+    }
+    let Some((h, e)) = fitted else {
+        return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
+    };
+    let inliers: Vec<bool> = e.iter().map(|&v| v <= threshold).collect();
+    let n_inliers = inliers.iter().filter(|&&b| b).count();
+    if n_inliers < 4 {
+        return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
+    }
+    let sum_sq: f64 = e
+        .iter()
+        .zip(&inliers)
+        .filter(|(_, &b)| b)
+        .map(|(v, _)| v * v)
+        .sum();
+    let _ = o;
+    RobustResult {
+        h: Some(h),
+        inliers,
+        n_inliers,
+        iterations: search.iterations,
+        stop: search.stop,
+        rms_inlier_error: (sum_sq / n_inliers as f64).sqrt(),
+        threshold,
+        lo_runs: search.lo_runs,
+    }
+}
