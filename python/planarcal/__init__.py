@@ -7,7 +7,8 @@ and its report, saved as JSON), then locate objects in millimetres (``locate_obj
 
 Underneath, a Rust core (homography solvers, refinement, batch transforms) with two faces:
 
-* the native API: ``estimate_homography``, ``transform_points``, ``reprojection_errors``,
+* the native API: ``estimate_homography``, ``estimate_homography_robust`` (outliers),
+  ``transform_points``, ``reprojection_errors``,
   ``reprojection_stats``, raising ``HomographyError`` / ``DegenerateError`` /
   ``PointAtInfinityError`` (all ``ValueError``) with messages that name the problem;
 * drop-ins for OpenCV: ``findHomography`` and ``perspectiveTransform`` with cv2's signatures,
@@ -59,6 +60,13 @@ from planarcal.homography import (
     transform_points,
 )
 from planarcal.images import load_image
+from planarcal.robust import (
+    RobustMethod,
+    RobustResult,
+    StopReason,
+    estimate_homography_robust,
+    estimate_homography_robust_batch,
+)
 from planarcal.objects import DetectedObject, detect_objects, locate_objects
 
 # A child forked after the thread pool started must not use it (its threads did not survive
@@ -93,12 +101,17 @@ __all__ = [
     "ImageError",
     "PointAtInfinityError",
     "ReprojectionStats",
+    "RobustMethod",
+    "RobustResult",
     "Solver",
+    "StopReason",
     "__version__",
     "detect_board",
     "detect_objects",
     "error_stats",
     "estimate_homography",
+    "estimate_homography_robust",
+    "estimate_homography_robust_batch",
     "findHomography",
     "load_image",
     "locate_objects",

@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal import _core
 from planarcal._core import HomographyError, PointAtInfinityError
+from planarcal.robust import check_robust_options
 
 # OpenCV's method constants (cv2.LMEDS, ...), with its integer values.
 LMEDS = 4
@@ -100,24 +101,47 @@ def findHomography(
     """OpenCV's ``findHomography``: returns ``(H, mask)``, H None when no homography fits.
 
     ``method=0`` fits all points (normalised DLT, then Levenberg-Marquardt on the transfer
-    error, as OpenCV does), in float64. The robust methods are not available yet and raise
-    ``NotImplementedError``. ``mask``, if given as a uint8 array of N elements, is filled
-    in place and returned, as OpenCV does with an output array.
+    error, as OpenCV does), in float64. Every robust flag (``RANSAC``, ``RHO``, ``USAC_*``)
+    runs planarcal's robust estimator (``estimate_homography_robust``: MSAC with PROSAC,
+    SPRT and local optimisation, then a refit of the inliers) with OpenCV's meaning of
+    ``ransacReprojThreshold`` (px), ``maxIters`` and ``confidence``; the mask marks the
+    inliers of the returned H (1) and the rest (0). ``USAC_PROSAC`` takes the points as
+    ordered best first, as OpenCV does. ``LMEDS`` is least median of squares and ignores the
+    threshold. ``mask``, if given as a uint8 array of N elements, is filled in place and
+    returned, as OpenCV does with an output array.
+
+    Differences from OpenCV, where it would silently go on: a threshold <= 0 or
+    ``maxIters`` < 1 raises (OpenCV substitutes values or returns None, depending on the
+    flag), and so does a confidence outside (0, 1), as OpenCV's RANSAC does.
     """
-    if method != 0:
-        if method in ROBUST_METHODS:
-            raise NotImplementedError(
-                f"findHomography method {ROBUST_METHODS[method]} ({method}) is not implemented "
-                "yet; use method=0 (all points) or cv2.findHomography for robust estimation"
-            )
-        raise _as_cv_error(
-            HomographyError(f"unknown estimation method {method!r}; expected 0 or a robust flag")
-        )
     try:
-        H, out_mask = _core.find_homography(srcPoints, dstPoints)
+        if method == 0:
+            H, out_mask = _core.find_homography(srcPoints, dstPoints)
+        elif method in ROBUST_METHODS:
+            H, out_mask = _find_robust(
+                srcPoints, dstPoints, method, ransacReprojThreshold, maxIters, confidence
+            )
+        else:
+            raise HomographyError(
+                f"unknown estimation method {method!r}; expected 0 or one of OpenCV's robust "
+                f"flags ({', '.join(f'{n} = {v}' for v, n in ROBUST_METHODS.items())})"
+            )
     except HomographyError as e:
         raise _as_cv_error(e) from None
     return H, _fill_output(mask, out_mask)
+
+
+def _find_robust(
+    src: ArrayLike,
+    dst: ArrayLike,
+    method: int,
+    threshold: object,
+    max_iters: object,
+    confidence: object,
+) -> tuple[NDArray[np.float64] | None, NDArray[np.uint8]]:
+    kind = "lmeds" if method == LMEDS else "msac"
+    t, c, k, _, m = check_robust_options(threshold, confidence, max_iters, 0, kind)
+    return _core.find_homography_robust(src, dst, m, t, k, c, method == USAC_PROSAC)
 
 
 def perspectiveTransform(

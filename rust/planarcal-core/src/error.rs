@@ -35,6 +35,9 @@ pub enum HomographyError {
         y: f64,
     },
 
+    #[error("scores must hold one number per correspondence: {points} points, {scores} scores")]
+    ScoresLength { points: usize, scores: usize },
+
     #[error("{name} must be {expected}, got {value}")]
     InvalidParameter {
         name: &'static str,

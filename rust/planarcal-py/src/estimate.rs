@@ -13,7 +13,7 @@ type HomographyAndMask<'py> = (Option<Bound<'py, PyArray2<f64>>>, Bound<'py, PyA
 /// Above this many points (or with refinement) the fit runs with the GIL released.
 const DETACH_MIN_POINTS: usize = 256;
 
-fn matrix_out<'py>(py: Python<'py>, h: &nalgebra::Matrix3<f64>) -> Bound<'py, PyArray2<f64>> {
+pub fn matrix_out<'py>(py: Python<'py>, h: &nalgebra::Matrix3<f64>) -> Bound<'py, PyArray2<f64>> {
     let rows: Vec<Vec<f64>> = (0..3)
         .map(|r| (0..3).map(|c| h[(r, c)]).collect())
         .collect();

@@ -6,6 +6,7 @@ mod convert;
 mod errors;
 mod estimate;
 mod reprojection;
+mod robust;
 mod transform;
 
 use pyo3::prelude::*;
@@ -28,6 +29,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_function(wrap_pyfunction!(estimate::estimate_homography, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::find_homography, m)?)?;
+    m.add_function(wrap_pyfunction!(robust::estimate_homography_robust, m)?)?;
+    m.add_function(wrap_pyfunction!(robust::estimate_homography_robust_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(robust::find_homography_robust, m)?)?;
     m.add_function(wrap_pyfunction!(transform::transform_points, m)?)?;
     m.add_function(wrap_pyfunction!(transform::perspective_transform, m)?)?;
     m.add_function(wrap_pyfunction!(reprojection::reprojection_errors, m)?)?;

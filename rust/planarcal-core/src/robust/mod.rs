@@ -167,9 +167,9 @@ fn check_options(o: &RobustOptions, n: usize) -> Result<()> {
     }
     if let Some(s) = &o.scores {
         if s.len() != n {
-            return Err(HomographyError::LengthMismatch {
-                src: n,
-                dst: s.len(),
+            return Err(HomographyError::ScoresLength {
+                points: n,
+                scores: s.len(),
             });
         }
         if let Some(v) = s.iter().find(|v| !v.is_finite()) {
@@ -300,9 +300,22 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let mut iterations = 0usize;
     let (mut rejected_tested, mut rejected_agreeing) = (0usize, 0usize);
     let mut lo_runs = 0;
+    let mut guide_checked = rank.is_some() || data.n < GUIDE_MIN_POINTS;
     let mut samples = Vec::with_capacity(BATCH);
     while (iterations as f64) < k_max {
-        let batch = BATCH
+        // Outliers dominate after the probe: rank the correspondences by neighbourhood
+        // consistency and sample the most consistent first (PROSAC), which finds an
+        // all-inlier sample in a few hundred draws where uniform sampling needs 10^4 and more.
+        if !guide_checked && iterations >= PROBE {
+            guide_checked = true;
+            if best.is_none_or(|b| (b.inliers as f64) < GUIDE_BELOW * data.n as f64) {
+                rank = Some(ranking(&guided::neighbourhood_scores(&data.src, &data.dst)));
+                let left = (o.max_iters - iterations).max(1) as u64;
+                prosac = Some(Prosac::new(n, left));
+            }
+        }
+        let first = if iterations == 0 { FIRST_BATCH } else { BATCH };
+        let batch = first
             .min((k_max - iterations as f64).ceil() as usize)
             .max(1);
         samples.clear();
