@@ -8,6 +8,7 @@ use crate::normalize::{Normalization, PointStats};
 use crate::Point;
 
 use super::sampler::Pcg32;
+use super::sprt::Sprt;
 
 pub struct Data {
     pub n: usize,
@@ -19,8 +20,9 @@ pub struct Data {
     y: Vec<f64>,
     u: Vec<f64>,
     v: Vec<f64>,
-    /// order[k]: the original index of the k-th point evaluated.
+    /// order[k]: the original index of the k-th point evaluated; position is its inverse.
     order: Vec<u32>,
+    position: Vec<u32>,
     pub src_norm: Normalization,
     pub dst_norm: Normalization,
     /// The squared inlier threshold in normalised destination units.
@@ -36,6 +38,9 @@ pub enum Verdict {
     Rejected { tested: usize, inliers: usize },
     /// Every point tested: the model is a candidate.
     Accepted { inliers: usize },
+    /// Stopped part-way: clearly on course for less support than the best model (a model
+    /// close to it, whose support says nothing about wrong models).
+    Outscored,
 }
 
 const CHUNK: usize = 16;
@@ -60,6 +65,10 @@ impl Data {
         let src_n: Vec<[f64; 2]> = src.iter().map(|p| src_norm.apply(p)).collect();
         let dst_n: Vec<[f64; 2]> = dst.iter().map(|p| dst_norm.apply(p)).collect();
         let order = rng.permutation(n);
+        let mut position = vec![0u32; n];
+        for (k, &i) in order.iter().enumerate() {
+            position[i as usize] = k as u32;
+        }
         let pick = |a: &[[f64; 2]], c: usize| order.iter().map(|&i| a[i as usize][c]).collect();
         let t = threshold * dst_norm.scale;
         let dst_area = spread(dst_n.iter().map(|p| p[0])) * spread(dst_n.iter().map(|p| p[1]));
@@ -72,6 +81,7 @@ impl Data {
             src: src_n,
             dst: dst_n,
             order,
+            position,
             src_norm,
             dst_norm,
             t2: t * t,
@@ -90,8 +100,15 @@ impl Data {
     }
 
     /// SPRT: points are tested in chunks; the model is rejected as soon as the log
-    /// likelihood ratio of "bad" to "good" exceeds `log_a`.
-    pub fn sprt(&self, h: &[f64; 9], log_in: f64, log_out: f64, log_a: f64) -> Verdict {
+    /// likelihood ratio of "bad" to "good" exceeds `log_a`. The sample's own points agree
+    /// with any model made from them, so they are no evidence and are left out (counted as
+    /// inliers all the same); otherwise a wrong model would get four points of credit.
+    /// A model that passes the test but trails `best` (the best model's support) by far
+    /// more than chance explains is given up as well (a bail-out test, Capel 2005).
+    pub fn sprt(&self, h: &[f64; 9], sample: &[u32; 4], test: &Sprt, best: usize) -> Verdict {
+        let (log_in, log_out, log_a) = (test.log_in, test.log_out, test.log_a);
+        let pace = best as f64 / self.n as f64;
+        let at = sample.map(|i| self.position[i as usize] as usize);
         let mut log_lambda = 0.0;
         let mut inliers = 0;
         let mut k = 0;
@@ -101,27 +118,35 @@ impl Data {
             for j in k..end {
                 agree += usize::from(self.agrees(h, j, self.t2));
             }
+            let own = at.iter().filter(|&&p| p >= k && p < end).count();
+            let agree = agree.saturating_sub(own);
             inliers += agree;
-            log_lambda += agree as f64 * log_in + (end - k - agree) as f64 * log_out;
+            log_lambda += agree as f64 * log_in + (end - k - own - agree) as f64 * log_out;
             k = end;
             if log_lambda > log_a && k < self.n {
-                return Verdict::Rejected { tested: k, inliers };
+                return Verdict::Rejected {
+                    tested: k - at.iter().filter(|&&p| p < k).count(),
+                    inliers,
+                };
+            }
+            // Behind the best model's pace by 4 standard deviations and 5%.
+            let expected = pace * k as f64;
+            if expected - inliers as f64 > 4.0 * expected.sqrt() + 0.05 * expected && k < self.n
+            {
+                return Verdict::Outscored;
             }
         }
-        Verdict::Accepted { inliers }
+        Verdict::Accepted { inliers: inliers + 4 }
     }
 
     /// Inlier count and MSAC cost (sum of min(r^2, t^2), normalised units) over all points.
     pub fn msac(&self, h: &[f64; 9]) -> (usize, f64) {
         let (mut count, mut cost) = (0, 0.0);
         for k in 0..self.n {
+            // Branch-free (min is NaN-safe here: r2 is never NaN, infinite at worst).
             let r2 = self.residual2(h, k);
-            if r2 <= self.t2 {
-                count += 1;
-                cost += r2;
-            } else {
-                cost += self.t2;
-            }
+            count += usize::from(r2 <= self.t2);
+            cost += r2.min(self.t2);
         }
         (count, cost)
     }
@@ -131,24 +156,29 @@ impl Data {
     fn residual2(&self, h: &[f64; 9], k: usize) -> f64 {
         let (x, y) = (self.x[k], self.y[k]);
         let w = h[6] * x + h[7] * y + h[8];
-        if !(w > 0.0) {
-            return f64::INFINITY;
-        }
         let iw = 1.0 / w;
         let ex = (h[0] * x + h[1] * y + h[2]) * iw - self.u[k];
         let ey = (h[3] * x + h[4] * y + h[5]) * iw - self.v[k];
-        ex * ex + ey * ey
+        let r2 = ex * ex + ey * ey;
+        if w > 0.0 && r2.is_finite() {
+            r2
+        } else {
+            f64::INFINITY
+        }
     }
 
-    /// Original indices of the points within squared threshold `t2` of h, ascending.
+    /// Original indices of the points within squared threshold `t2` of h, in evaluation
+    /// order (a fixed random order: any prefix is a random subset).
     pub fn inliers(&self, h: &[f64; 9], t2: f64) -> Vec<u32> {
-        let mut mask = vec![false; self.n];
+        // Branch-free: about half the points agree, at random, which defeats prediction.
+        let mut out = vec![0u32; self.n];
+        let mut count = 0;
         for k in 0..self.n {
-            if self.agrees(h, k, t2) {
-                mask[self.order[k] as usize] = true;
-            }
+            out[count] = self.order[k];
+            count += usize::from(self.agrees(h, k, t2));
         }
-        (0..self.n as u32).filter(|&i| mask[i as usize]).collect()
+        out.truncate(count);
+        out
     }
 
     /// A model of normalised coordinates in the caller's units: T_d^-1 H T_s.

@@ -24,7 +24,8 @@ const WEAK_SUPPORT: f64 = 0.02;
 const MAX_SETTLE: usize = 2;
 
 /// Most points a local refit uses: beyond this a least-squares fit is no better for scoring
-/// (the final refinement uses all inliers); evenly spaced in index order, deterministic.
+/// (the final refinement uses all inliers); a random subset, since `Data::inliers` lists
+/// points in a fixed random order.
 const MAX_FIT_POINTS: usize = 200;
 
 /// The least-squares homography (normalised coordinates) through the given points.
@@ -32,17 +33,9 @@ pub fn fit(data: &Data, idx: &[u32]) -> Option<[f64; 9]> {
     if idx.len() < 4 {
         return None;
     }
-    let stride = idx.len().div_ceil(MAX_FIT_POINTS);
-    let src: Vec<Point> = idx
-        .iter()
-        .step_by(stride)
-        .map(|&i| data.src[i as usize])
-        .collect();
-    let dst: Vec<Point> = idx
-        .iter()
-        .step_by(stride)
-        .map(|&i| data.dst[i as usize])
-        .collect();
+    let idx = &idx[..idx.len().min(MAX_FIT_POINTS)];
+    let src: Vec<Point> = idx.iter().map(|&i| data.src[i as usize]).collect();
+    let dst: Vec<Point> = idx.iter().map(|&i| data.dst[i as usize]).collect();
     let h = estimate(&src, &dst, Solver::NormalizedDlt, false).ok()?.h;
     Some(to_array(&h))
 }

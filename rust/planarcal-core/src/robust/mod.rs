@@ -16,6 +16,7 @@ mod data;
 mod guided;
 mod local_opt;
 mod minimal;
+mod progressive;
 mod sampler;
 mod sprt;
 
@@ -30,7 +31,8 @@ use crate::Point;
 
 use data::{Data, Verdict};
 pub use sampler::Pcg32;
-use sampler::{distinct_sample, Prosac};
+use progressive::Progressive;
+use sampler::distinct_sample;
 use sprt::{plain_iterations_needed, Sprt};
 
 /// How the robust search scores a hypothesis.
@@ -127,17 +129,17 @@ impl RobustResult {
     }
 }
 
-/// Hypotheses drawn and scored together: decisions happen between batches. The first batch
-/// is small so that SPRT sharpens as soon as a model is found.
+/// Hypotheses drawn and scored together: decisions happen between batches. Early batches
+/// are small so that SPRT and the stopping rule sharpen as soon as a model is found.
 const BATCH: usize = 64;
-const FIRST_BATCH: usize = 16;
+const FIRST_BATCH: usize = 8;
 /// Below this many points per batch, scoring on one thread is faster than splitting it.
 const PARALLEL_MIN_WORK: usize = 64 * 2_000;
 /// Smallest |cross product| of a sample triangle in normalised units (collinear below).
 const MIN_SAMPLE_AREA: f64 = 1e-6;
 /// Samples drawn uniformly before the search may switch to guided sampling, and the inlier
 /// ratio of the best model below which it does (without caller-given scores).
-const PROBE: usize = 512;
+const PROBE: usize = 128;
 const GUIDE_BELOW: f64 = 0.3;
 /// Fewest points for which neighbourhoods say anything.
 const GUIDE_MIN_POINTS: usize = 100;
@@ -279,7 +281,8 @@ fn score_batch<T: Send>(
 /// A ranking of the correspondences by descending score (ties by index).
 fn ranking(scores: &[f64]) -> Vec<u32> {
     let mut r: Vec<u32> = (0..scores.len() as u32).collect();
-    r.sort_by(|&a, &b| {
+    // Unstable is deterministic here: the order is total (ties broken by index).
+    r.sort_unstable_by(|&a, &b| {
         scores[b as usize]
             .total_cmp(&scores[a as usize])
             .then(a.cmp(&b))
@@ -287,10 +290,25 @@ fn ranking(scores: &[f64]) -> Vec<u32> {
     r
 }
 
+/// Sampling and stopping: uniform with RANSAC's rule, or progressive over a ranking with
+/// PROSAC's (the uniform rule still applies there: whichever stops first).
+fn draw(progressive: &mut Option<Progressive>, rng: &mut Pcg32, n: u32) -> [u32; 4] {
+    let mut s = [0u32; 4];
+    match progressive {
+        Some(p) => p.sample(rng, &mut s),
+        None => distinct_sample(rng, n, &mut s),
+    }
+    s
+}
+
+pub static DBG_MSAC: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+pub static DBG_TESTED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let n = data.n as u32;
-    let mut rank = o.scores.as_deref().map(ranking);
-    let mut prosac = rank.as_ref().map(|_| Prosac::new(n, o.max_iters as u64));
+    let mut progressive = o
+        .scores
+        .as_deref()
+        .map(|s| Progressive::new(ranking(s), o.max_iters));
     // Start by letting through any model with more support than chance: a model from three
     // inliers and one outlier agrees with only a few points, and local optimisation grows it
     // into the true model. The test sharpens as soon as a best model exists.
@@ -300,54 +318,71 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let mut iterations = 0usize;
     let (mut rejected_tested, mut rejected_agreeing) = (0usize, 0usize);
     let mut lo_runs = 0;
-    let mut guide_checked = rank.is_some() || data.n < GUIDE_MIN_POINTS;
+    let mut guide_checked = progressive.is_some() || data.n < GUIDE_MIN_POINTS;
     let mut samples = Vec::with_capacity(BATCH);
-    while (iterations as f64) < k_max {
+    let mut is_inlier = vec![false; data.n];
+    let mut stale = false;
+    let left = |iterations: usize, k_max: f64, p: &Option<Progressive>| {
+        let uniform = k_max - iterations as f64;
+        let progressive = p.as_ref().map_or(f64::INFINITY, |p| p.needed - p.drawn as f64);
+        uniform.min(progressive)
+    };
+    while left(iterations, k_max, &progressive) > 0.0 {
         // Outliers dominate after the probe: rank the correspondences by neighbourhood
         // consistency and sample the most consistent first (PROSAC), which finds an
-        // all-inlier sample in a few hundred draws where uniform sampling needs 10^4 and more.
+        // all-inlier sample in tens of draws where uniform sampling needs thousands.
         if !guide_checked && iterations >= PROBE {
             guide_checked = true;
             if best.is_none_or(|b| (b.inliers as f64) < GUIDE_BELOW * data.n as f64) {
-                rank = Some(ranking(&guided::neighbourhood_scores(&data.src, &data.dst)));
-                let left = (o.max_iters - iterations).max(1) as u64;
-                prosac = Some(Prosac::new(n, left));
+                let rank = guided::ranking(&guided::neighbourhood_scores(&data.src, &data.dst));
+                progressive = Some(Progressive::new(rank, o.max_iters - iterations));
+                stale = best.is_some();
             }
         }
-        let first = if iterations == 0 { FIRST_BATCH } else { BATCH };
-        let batch = first
-            .min((k_max - iterations as f64).ceil() as usize)
-            .max(1);
+        // The stopping rule of a new ranking, or of a model found before delta settled.
+        if stale {
+            stale = false;
+            if let (Some(p), Some(b)) = (progressive.as_mut(), best) {
+                is_inlier.fill(false);
+                for i in data.inliers(&b.h, data.t2) {
+                    is_inlier[i as usize] = true;
+                }
+                p.update(&is_inlier, &sprt, sprt.delta, o.confidence);
+            }
+        }
+        // Batches grow from FIRST_BATCH to BATCH in each phase, so that the stopping rule and
+        // SPRT are sharpened early.
+        let in_phase = progressive.as_ref().map_or(iterations, |p| p.drawn);
+        let size = in_phase.clamp(FIRST_BATCH, BATCH);
+        let batch = (size as f64)
+            .min(left(iterations, k_max, &progressive).ceil())
+            .max(1.0) as usize;
         samples.clear();
         for _ in 0..batch {
-            let mut s = [0u32; 4];
-            match (&mut prosac, &rank) {
-                (Some(p), Some(r)) => {
-                    p.sample(rng, &mut s);
-                    s = s.map(|i| r[i as usize]);
-                }
-                _ => distinct_sample(rng, n, &mut s),
-            }
-            samples.push(s);
+            samples.push(draw(&mut progressive, rng, n));
         }
         iterations += batch;
-        let test = sprt;
+        let (test, pace) = (sprt, best.map_or(0, |b| b.inliers));
         let verdicts = score_batch(data, &samples, o.parallel, |s| {
-            hypothesis(data, s).map(|h| (h, data.sprt(&h, test.log_in, test.log_out, test.log_a)))
+            hypothesis(data, s).map(|h| (h, data.sprt(&h, s, &test, pace)))
         });
         for (h, verdict) in verdicts.into_iter().flatten() {
             match verdict {
+                Verdict::Outscored => {}
                 Verdict::Rejected { tested, inliers } => {
+                    DBG_TESTED.fetch_add(tested, std::sync::atomic::Ordering::Relaxed);
                     rejected_tested += tested;
                     rejected_agreeing += inliers;
                 }
                 Verdict::Accepted { inliers } => {
+                    DBG_TESTED.fetch_add(1_000_000, std::sync::atomic::Ordering::Relaxed);
                     // SPRT counted the inliers: a model with clearly fewer than the best's
                     // cannot have a lower MSAC cost in practice; skip its full scoring.
                     if best.is_some_and(|b| (inliers as f64) < 0.95 * b.inliers as f64) {
                         continue;
                     }
                     let (inliers, cost) = data.msac(&h);
+                    DBG_MSAC.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     if best.is_some_and(|b| cost >= b.cost) {
                         continue;
                     }
@@ -364,6 +399,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                     let epsilon = model.inliers as f64 / data.n as f64;
                     sprt = Sprt::new(epsilon, sprt.delta);
                     k_max = (o.max_iters as f64).min(sprt.iterations_needed(o.confidence, epsilon));
+                    stale = progressive.is_some();
                 }
             }
         }
@@ -375,18 +411,23 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                 if let Some(b) = best {
                     let epsilon = b.inliers as f64 / data.n as f64;
                     k_max = (o.max_iters as f64).min(sprt.iterations_needed(o.confidence, epsilon));
+                    stale = progressive.is_some();
                 }
             }
         }
+        if iterations >= o.max_iters {
+            break;
+        }
     }
-    let stop = if iterations >= o.max_iters
-        && best.is_some_and(|b| {
+    let certified = progressive.as_ref().is_some_and(Progressive::done)
+        || best.is_some_and(|b| {
             sprt.iterations_needed(o.confidence, b.inliers as f64 / data.n as f64)
-                > o.max_iters as f64
-        }) {
-        StopReason::MaxIterations
-    } else {
+                <= iterations as f64
+        });
+    let stop = if certified {
         StopReason::Converged
+    } else {
+        StopReason::MaxIterations
     };
     Search {
         best,
@@ -481,17 +522,20 @@ fn minimum_support(n: usize, delta: f64, hypotheses: usize) -> usize {
     n + 1
 }
 
-/// Transfer errors under an oriented H (infinite behind the horizon).
-fn errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Vec<f64> {
-    let mut out = vec![0.0; src.len()];
-    let _ = crate::reprojection::reprojection_errors_into(
-        h,
-        src,
-        dst,
-        &mut out,
-        crate::transform::Orientation::Oriented,
-    );
-    out
+/// Squared transfer errors under an oriented H (infinite behind the horizon).
+fn squared_errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Vec<f64> {
+    src.iter()
+        .zip(dst)
+        .map(|(s, d)| {
+            let w = h[(2, 0)] * s[0] + h[(2, 1)] * s[1] + h[(2, 2)];
+            if !(w > 0.0) {
+                return f64::INFINITY;
+            }
+            let x = (h[(0, 0)] * s[0] + h[(0, 1)] * s[1] + h[(0, 2)]) / w;
+            let y = (h[(1, 0)] * s[0] + h[(1, 1)] * s[1] + h[(1, 2)]) / w;
+            (x - d[0]) * (x - d[0]) + (y - d[1]) * (y - d[1])
+        })
+        .collect()
 }
 
 /// The final model: refined on its inliers in the caller's units (Levenberg-Marquardt from
@@ -513,7 +557,9 @@ fn finish(
     if best.inliers < support {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     }
+    let t2 = threshold * threshold;
     let mut idx = data.inliers(&best.h, search.t2);
+    idx.sort_unstable();
     let mut start = data.denormalize(&best.h);
     let mut fitted = None;
     for _ in 0..3 {
@@ -526,31 +572,28 @@ fn finish(
             break;
         };
         start = fit.h;
-        let e = errors(&fit.h, src, dst);
-        let next: Vec<u32> = (0..n as u32)
-            .filter(|&i| e[i as usize] <= threshold)
-            .collect();
-        fitted = Some((fit.h, e));
+        let e2 = squared_errors(&fit.h, src, dst);
+        let next: Vec<u32> = (0..n as u32).filter(|&i| e2[i as usize] <= t2).collect();
+        fitted = Some((fit.h, e2));
         if next == idx {
             break;
         }
         idx = next;
     }
-    let Some((h, e)) = fitted else {
+    let Some((h, e2)) = fitted else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     };
-    let inliers: Vec<bool> = e.iter().map(|&v| v <= threshold).collect();
+    let inliers: Vec<bool> = e2.iter().map(|&v| v <= t2).collect();
     let n_inliers = inliers.iter().filter(|&&b| b).count();
     if n_inliers < 4 {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     }
-    let sum_sq: f64 = e
+    let sum_sq: f64 = e2
         .iter()
         .zip(&inliers)
         .filter(|(_, &b)| b)
-        .map(|(v, _)| v * v)
+        .map(|(v, _)| v)
         .sum();
-    let _ = o;
     RobustResult {
         h: Some(h),
         inliers,

@@ -1,0 +1,132 @@
+//! Progressive sampling (PROSAC, Chum & Matas 2005) over a ranking of the correspondences,
+//! with its stopping rule: the search may stop once, for some prefix U_n of the ranking in
+//! which the best model's support is not due to chance, enough samples have been drawn for
+//! `confidence` that an all-inlier sample of U_n would have been found (maximality). With
+//! a good ranking the top of it is nearly all inliers, and the search ends after tens of
+//! samples where uniform sampling needs thousands.
+
+use super::sampler::{Pcg32, Prosac};
+use super::sprt::Sprt;
+
+/// Chance that a wrong model's support within a prefix reaches the required count.
+const NON_RANDOMNESS: f64 = 0.05;
+/// Prefix sizes tried by the stopping rule grow by this factor (a sparse, O(log n) set).
+const PREFIX_GROWTH: f64 = 1.1;
+
+pub struct Progressive {
+    /// rank[i]: the original index of the i-th best correspondence.
+    rank: Vec<u32>,
+    sampler: Prosac,
+    /// Samples drawn since progressive sampling began.
+    pub drawn: usize,
+    /// Samples the stopping rule asks for (infinite until a model qualifies).
+    pub needed: f64,
+}
+
+impl Progressive {
+    /// `samples` bounds the draws: by then sampling is uniform over all points.
+    pub fn new(rank: Vec<u32>, samples: usize) -> Self {
+        let n = rank.len() as u32;
+        Progressive {
+            rank,
+            sampler: Prosac::new(n, samples.max(1) as u64),
+            drawn: 0,
+            needed: f64::INFINITY,
+        }
+    }
+
+    /// The next minimal sample, as original indices.
+    pub fn sample(&mut self, rng: &mut Pcg32, out: &mut [u32; 4]) {
+        self.sampler.sample(rng, out);
+        *out = out.map(|i| self.rank[i as usize]);
+        self.drawn += 1;
+    }
+
+    pub fn done(&self) -> bool {
+        self.drawn as f64 >= self.needed
+    }
+
+    /// Updates the stopping rule for a new best model, given which points are its inliers
+    /// (by original index), the SPRT in force and the rate `delta` at which points agree
+    /// with a wrong model.
+    pub fn update(&mut self, is_inlier: &[bool], sprt: &Sprt, delta: f64, confidence: f64) {
+        let total = self.rank.len();
+        let survive = 1.0 - (-sprt.log_a).exp();
+        let mut needed = f64::INFINITY;
+        let mut support = 0usize;
+        let mut counted = 0usize;
+        let mut size = 8usize.min(total);
+        loop {
+            while counted < size {
+                support += usize::from(is_inlier[self.rank[counted] as usize]);
+                counted += 1;
+            }
+            if support >= minimum_support(size, delta) {
+                let mut p = survive;
+                for j in 0..4 {
+                    p *= support.saturating_sub(j) as f64 / (size - j) as f64;
+                }
+                if p > 0.0 {
+                    let k = if p >= 1.0 {
+                        1.0
+                    } else {
+                        ((1.0 - confidence).ln() / (1.0 - p).ln()).ceil().max(1.0)
+                    };
+                    needed = needed.min(k);
+                }
+            }
+            if size == total {
+                break;
+            }
+            size = ((size as f64 * PREFIX_GROWTH).ceil() as usize).clamp(size + 1, total);
+        }
+        self.needed = needed;
+    }
+}
+
+/// The least support i of a model in a prefix of n points for which a wrong model (its 4
+/// sample points plus, per other point, agreement with chance `delta`: binomial, here by
+/// its Poisson limit) reaches i with probability below NON_RANDOMNESS.
+fn minimum_support(n: usize, delta: f64) -> usize {
+    if n <= 4 {
+        return n + 1;
+    }
+    let lambda = (n - 4) as f64 * delta.max(1e-12);
+    let (mut term, mut below) = ((-lambda).exp(), 0.0);
+    for j in 0..=(n - 4) {
+        if 1.0 - below < NON_RANDOMNESS {
+            return 4 + j.max(1);
+        }
+        below += term;
+        term *= lambda / (j + 1) as f64;
+    }
+    n + 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_clean_top_of_the_ranking_stops_the_search_early() {
+        let n = 1000;
+        // The top 100 ranked points are inliers; 10% of the rest are.
+        let rank: Vec<u32> = (0..n as u32).collect();
+        let is_inlier: Vec<bool> = (0..n).map(|i| i < 100 || i % 10 == 0).collect();
+        let mut p = Progressive::new(rank, 10_000);
+        let sprt = Sprt::new(0.19, 0.001);
+        p.update(&is_inlier, &sprt, 0.001, 0.999);
+        assert!(p.needed < 20.0, "{}", p.needed);
+        // The same support spread uniformly through the ranking earns no shortcut.
+        let spread: Vec<bool> = (0..n).map(|i| i % 5 == 0).collect();
+        p.update(&spread, &sprt, 0.001, 0.999);
+        assert!(p.needed > 3000.0, "{}", p.needed);
+    }
+
+    #[test]
+    fn chance_support_does_not_qualify() {
+        assert!(minimum_support(100, 0.01) >= 6);
+        assert!(minimum_support(1000, 0.01) > minimum_support(100, 0.01));
+        assert_eq!(minimum_support(4, 0.01), 5);
+    }
+}
