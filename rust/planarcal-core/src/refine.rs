@@ -29,63 +29,110 @@ struct Evaluation {
     jtr: Vec8,
 }
 
-/// Cost, J^T J and J^T r at p = (h11 .. h32) with h33 = 1; None if a point reaches w <= 0.
-/// `pts` holds the normalised pairs (X, Y, x, y).
-fn evaluate(pts: &[[f64; 4]], p: &Vec8) -> Option<Evaluation> {
-    // Sums weighted by a = 1/w^2 (scalars, so the compiler keeps them in registers):
-    // p p^T (XX, XY, X, YY, Y, 1); x^ p q^T and y^ p q^T with q = (X, Y); (x^2 + y^2) q q^T.
-    let (mut a_xx, mut a_xy, mut a_x, mut a_yy, mut a_y, mut a_1) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let (mut bx_xx, mut bx_xy, mut bx_yy, mut bx_x, mut bx_y) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    let (mut by_xx, mut by_xy, mut by_yy, mut by_x, mut by_y) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    let (mut c_xx, mut c_xy, mut c_yy) = (0.0, 0.0, 0.0);
-    let (mut g1x, mut g1y, mut g1) = (0.0, 0.0, 0.0);
-    let (mut g2x, mut g2y, mut g2) = (0.0, 0.0, 0.0);
-    let (mut g3x, mut g3y) = (0.0, 0.0);
-    let mut cost = 0.0;
-    for &[sx, sy, dx, dy] in pts {
-        let w = p[6] * sx + p[7] * sy + 1.0;
-        if !(w > 0.0) {
-            return None;
+/// Sums a point contributes to the normal equations, weighted by a = 1/w^2: p p^T (XX, XY,
+/// X, YY, Y, 1); x^ p q^T and y^ p q^T with q = (X, Y) (XX, XY, YY, X, Y each); (x^2 + y^2)
+/// q q^T (XX, XY, YY); J^T r (8); and the squared residual.
+const SUMS: usize = 28;
+/// Points accumulated side by side in separate lanes, which the compiler turns into vector
+/// arithmetic; the lanes are added in a fixed order, so every build gives the same bits.
+const LANES: usize = 4;
+
+/// Point (X, Y, x, y)'s terms, and whether it is in front (w > 0).
+#[inline(always)]
+fn terms(p: &Vec8, [sx, sy, dx, dy]: [f64; 4]) -> ([f64; SUMS], bool) {
+    let w = p[6] * sx + p[7] * sy + 1.0;
+    let iw = 1.0 / w;
+    let xh = (p[0] * sx + p[1] * sy + p[2]) * iw;
+    let yh = (p[3] * sx + p[4] * sy + p[5]) * iw;
+    let (rx, ry) = (xh - dx, yh - dy);
+    let a = iw * iw;
+    let (ax, ay) = (a * sx, a * sy);
+    let (axx, axy, ayy) = (ax * sx, ax * sy, ay * sy);
+    let r2 = xh * xh + yh * yh;
+    let (ex, ey) = (rx * iw, ry * iw);
+    let e3 = -(xh * rx + yh * ry) * iw;
+    let t = [
+        axx,
+        axy,
+        ax,
+        ayy,
+        ay,
+        a,
+        xh * axx,
+        xh * axy,
+        xh * ayy,
+        xh * ax,
+        xh * ay,
+        yh * axx,
+        yh * axy,
+        yh * ayy,
+        yh * ax,
+        yh * ay,
+        r2 * axx,
+        r2 * axy,
+        r2 * ayy,
+        ex * sx,
+        ex * sy,
+        ex,
+        ey * sx,
+        ey * sy,
+        ey,
+        e3 * sx,
+        e3 * sy,
+        rx * rx + ry * ry,
+    ];
+    (t, w > 0.0)
+}
+
+/// The lane sums over all points; None if a point reaches w <= 0 (or NaN).
+#[inline(always)]
+fn accumulate(pts: &[[f64; 4]], p: &Vec8) -> Option<[f64; SUMS]> {
+    let mut acc = [[0.0f64; LANES]; SUMS];
+    let mut front = true;
+    let (chunks, tail) = pts.as_chunks::<LANES>();
+    for chunk in chunks {
+        for (l, &pt) in chunk.iter().enumerate() {
+            let (t, ok) = terms(p, pt);
+            front &= ok;
+            for k in 0..SUMS {
+                acc[k][l] += t[k];
+            }
         }
-        let iw = 1.0 / w;
-        let xh = (p[0] * sx + p[1] * sy + p[2]) * iw;
-        let yh = (p[3] * sx + p[4] * sy + p[5]) * iw;
-        let (rx, ry) = (xh - dx, yh - dy);
-        cost += rx * rx + ry * ry;
-        let a = iw * iw;
-        let (ax, ay) = (a * sx, a * sy);
-        a_xx += ax * sx;
-        a_xy += ax * sy;
-        a_x += ax;
-        a_yy += ay * sy;
-        a_y += ay;
-        a_1 += a;
-        let (axx, axy, ayy) = (ax * sx, ax * sy, ay * sy);
-        bx_xx += xh * axx;
-        bx_xy += xh * axy;
-        bx_yy += xh * ayy;
-        bx_x += xh * ax;
-        bx_y += xh * ay;
-        by_xx += yh * axx;
-        by_xy += yh * axy;
-        by_yy += yh * ayy;
-        by_x += yh * ax;
-        by_y += yh * ay;
-        let r2 = xh * xh + yh * yh;
-        c_xx += r2 * axx;
-        c_xy += r2 * axy;
-        c_yy += r2 * ayy;
-        let (ex, ey) = (rx * iw, ry * iw);
-        let e3 = -(xh * rx + yh * ry) * iw;
-        g1x += ex * sx;
-        g1y += ex * sy;
-        g1 += ex;
-        g2x += ey * sx;
-        g2y += ey * sy;
-        g2 += ey;
-        g3x += e3 * sx;
-        g3y += e3 * sy;
     }
+    for (l, &pt) in tail.iter().enumerate() {
+        let (t, ok) = terms(p, pt);
+        front &= ok;
+        for k in 0..SUMS {
+            acc[k][l] += t[k];
+        }
+    }
+    if !front {
+        return None;
+    }
+    Some(acc.map(|lanes| lanes.iter().sum()))
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn accumulate_avx2(pts: &[[f64; 4]], p: &Vec8) -> Option<[f64; SUMS]> {
+    accumulate(pts, p)
+}
+
+/// Cost, J^T J and J^T r at p = (h11 .. h32) with h33 = 1; None if a point reaches w <= 0.
+/// `pts` holds the normalised pairs (X, Y, x, y). Runs the AVX2 build where the CPU has it
+/// (no FMA: both builds round identically).
+fn evaluate(pts: &[[f64; 4]], p: &Vec8) -> Option<Evaluation> {
+    #[cfg(target_arch = "x86_64")]
+    let sums = if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        unsafe { accumulate_avx2(pts, p) }
+    } else {
+        accumulate(pts, p)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let sums = accumulate(pts, p);
+    let [a_xx, a_xy, a_x, a_yy, a_y, a_1, bx_xx, bx_xy, bx_yy, bx_x, bx_y, by_xx, by_xy, by_yy, by_x, by_y, c_xx, c_xy, c_yy, g1x, g1y, g1, g2x, g2y, g2, g3x, g3y, cost] =
+        sums?;
     let mut jtj = Mat8::zeros();
     let p3 = [[a_xx, a_xy, a_x], [a_xy, a_yy, a_y], [a_x, a_y, a_1]];
     // Rows of p q^T: (X X, X Y), (Y X, Y Y), (X, Y).

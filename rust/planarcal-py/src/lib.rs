@@ -30,7 +30,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(estimate::estimate_homography, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::find_homography, m)?)?;
     m.add_function(wrap_pyfunction!(robust::estimate_homography_robust, m)?)?;
-    m.add_function(wrap_pyfunction!(robust::estimate_homography_robust_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(
+        robust::estimate_homography_robust_batch,
+        m
+    )?)?;
     m.add_function(wrap_pyfunction!(robust::find_homography_robust, m)?)?;
     m.add_function(wrap_pyfunction!(transform::transform_points, m)?)?;
     m.add_function(wrap_pyfunction!(transform::perspective_transform, m)?)?;

@@ -45,7 +45,9 @@ fn options(
     method_name: &str,
 ) -> PyResult<RobustOptions> {
     if max_iters <= 0 {
-        return Err(invalid(format!("max_iters must be at least 1, got {max_iters}")));
+        return Err(invalid(format!(
+            "max_iters must be at least 1, got {max_iters}"
+        )));
     }
     Ok(RobustOptions {
         threshold,

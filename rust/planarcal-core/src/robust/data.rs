@@ -27,7 +27,8 @@ pub struct Data {
     pub dst_norm: Normalization,
     /// The squared inlier threshold in normalised destination units.
     pub t2: f64,
-    /// Area the middle 90% of the destination points spread over (normalised units).
+    /// Area the destination points spread over (normalised units): that of the uniform
+    /// rectangle with the same second moments, 12 sqrt(det(covariance)).
     pub dst_area: f64,
 }
 
@@ -44,23 +45,87 @@ pub enum Verdict {
 }
 
 const CHUNK: usize = 16;
+/// Interleaved partial sums of the MSAC score (they vectorise; a fixed order of adding them
+/// keeps the result the same in every build).
+const LANES: usize = 4;
 
-/// The range of the middle 90% of the values (selection, not a sort).
-fn spread(values: impl Iterator<Item = f64>) -> f64 {
-    let mut v: Vec<f64> = values.collect();
-    let lo = (v.len() - 1) / 20;
-    let hi = v.len() - 1 - lo;
-    let (_, top, _) = v.select_nth_unstable_by(hi, f64::total_cmp);
-    let top = *top;
-    let (_, bottom, _) = v[..hi].select_nth_unstable_by(lo, f64::total_cmp);
-    (top - *bottom).max(1e-12)
+/// A public method that runs an AVX2 build of its body where the CPU has it (as OpenCV
+/// does; no FMA, so both builds round identically).
+macro_rules! with_avx2 {
+    ($(#[$doc:meta])* $name:ident, $fast:ident, $body:ident,
+     ($($arg:ident: $ty:ty),*) -> $ret:ty) => {
+        $(#[$doc])*
+        pub fn $name(&self, $($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2, checked just above.
+                return unsafe { self.$fast($($arg),*) };
+            }
+            self.$body($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        unsafe fn $fast(&self, $($arg: $ty),*) -> $ret {
+            self.$body($($arg),*)
+        }
+    };
 }
 
+/// Whether (x, y) -> (u, v) is within squared distance t2 of h's prediction, division-free.
+#[inline(always)]
+fn agrees(h: &[f64; 9], x: f64, y: f64, u: f64, v: f64, t2: f64) -> bool {
+    let w = h[6] * x + h[7] * y + h[8];
+    let ex = h[0] * x + h[1] * y + h[2] - u * w;
+    let ey = h[3] * x + h[4] * y + h[5] - v * w;
+    (w > 0.0) & (ex * ex + ey * ey <= t2 * w * w)
+}
+
+/// Squared transfer error of (x, y) -> (u, v) under h; infinite behind the horizon.
+#[inline(always)]
+fn residual2(h: &[f64; 9], x: f64, y: f64, u: f64, v: f64) -> f64 {
+    let w = h[6] * x + h[7] * y + h[8];
+    let iw = 1.0 / w;
+    let ex = (h[0] * x + h[1] * y + h[2]) * iw - u;
+    let ey = (h[3] * x + h[4] * y + h[5]) * iw - v;
+    let r2 = ex * ex + ey * ey;
+    // `&`, not `&&`: no branch, so the callers' loops vectorise.
+    if (w > 0.0) & (r2 < f64::INFINITY) {
+        r2
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Fixed-size blocks of the four coordinate arrays, for loops the compiler can vectorise (no
+/// bounds checks inside), and the points left over.
+type Blocks<'a, const B: usize> = (
+    std::iter::Zip<
+        std::iter::Zip<
+            std::iter::Zip<std::slice::Iter<'a, [f64; B]>, std::slice::Iter<'a, [f64; B]>>,
+            std::slice::Iter<'a, [f64; B]>,
+        >,
+        std::slice::Iter<'a, [f64; B]>,
+    >,
+    usize,
+);
+
 impl Data {
+    /// Points range.start.. in blocks of B (range.start a multiple of B or not, any).
+    fn blocks<const B: usize>(&self, from: usize, to: usize) -> Blocks<'_, B> {
+        let (x, _) = self.x[from..to].as_chunks::<B>();
+        let (y, _) = self.y[from..to].as_chunks::<B>();
+        let (u, _) = self.u[from..to].as_chunks::<B>();
+        let (v, _) = self.v[from..to].as_chunks::<B>();
+        let whole = from + x.len() * B;
+        (x.iter().zip(y).zip(u).zip(v), whole)
+    }
+
     /// None when all sources (or all destinations) coincide: nothing to normalise.
     pub fn new(src: &[Point], dst: &[Point], threshold: f64, rng: &mut Pcg32) -> Option<Self> {
         let src_norm = Normalization::from_stats(&PointStats::of(src))?;
-        let dst_norm = Normalization::from_stats(&PointStats::of(dst))?;
+        let dst_stats = PointStats::of(dst);
+        let dst_norm = Normalization::from_stats(&dst_stats)?;
         let n = src.len();
         let src_n: Vec<[f64; 2]> = src.iter().map(|p| src_norm.apply(p)).collect();
         let dst_n: Vec<[f64; 2]> = dst.iter().map(|p| dst_norm.apply(p)).collect();
@@ -71,7 +136,10 @@ impl Data {
         }
         let pick = |a: &[[f64; 2]], c: usize| order.iter().map(|&i| a[i as usize][c]).collect();
         let t = threshold * dst_norm.scale;
-        let dst_area = spread(dst_n.iter().map(|p| p[0])) * spread(dst_n.iter().map(|p| p[1]));
+        // The scatter is in units of `unit`; normalised coordinates are scaled by `scale`.
+        let (k, m) = (dst_stats.unit * dst_norm.scale, n as f64);
+        let det = (dst_stats.sxx * dst_stats.syy - dst_stats.sxy * dst_stats.sxy).max(0.0);
+        let dst_area = (12.0 * det.sqrt() / m * k * k).max(1e-12);
         Some(Data {
             n,
             x: pick(&src_n, 0),
@@ -89,14 +157,24 @@ impl Data {
         })
     }
 
+    with_avx2!(
+        /// SPRT of a hypothesis made from `sample` (see `sprt_body`).
+        sprt, sprt_avx2, sprt_body,
+        (h: &[f64; 9], sample: &[u32; 4], test: &Sprt, best: usize) -> Verdict
+    );
+    with_avx2!(
+        /// Inlier count and MSAC cost of h over all points.
+        msac, msac_avx2, msac_body, (h: &[f64; 9]) -> (usize, f64)
+    );
+    with_avx2!(
+        /// The points within squared threshold `t2` of h (see `inliers_body`).
+        inliers, inliers_avx2, inliers_body, (h: &[f64; 9], t2: f64) -> Vec<u32>
+    );
+
     /// Whether point k (evaluation order) is an inlier of h at squared threshold t2.
     #[inline(always)]
     fn agrees(&self, h: &[f64; 9], k: usize, t2: f64) -> bool {
-        let (x, y) = (self.x[k], self.y[k]);
-        let w = h[6] * x + h[7] * y + h[8];
-        let ex = h[0] * x + h[1] * y + h[2] - self.u[k] * w;
-        let ey = h[3] * x + h[4] * y + h[5] - self.v[k] * w;
-        (w > 0.0) & (ex * ex + ey * ey <= t2 * w * w)
+        agrees(h, self.x[k], self.y[k], self.u[k], self.v[k], t2)
     }
 
     /// SPRT: points are tested in chunks; the model is rejected as soon as the log
@@ -105,7 +183,8 @@ impl Data {
     /// inliers all the same); otherwise a wrong model would get four points of credit.
     /// A model that passes the test but trails `best` (the best model's support) by far
     /// more than chance explains is given up as well (a bail-out test, Capel 2005).
-    pub fn sprt(&self, h: &[f64; 9], sample: &[u32; 4], test: &Sprt, best: usize) -> Verdict {
+    #[inline(always)]
+    fn sprt_body(&self, h: &[f64; 9], sample: &[u32; 4], test: &Sprt, best: usize) -> Verdict {
         let (log_in, log_out, log_a) = (test.log_in, test.log_out, test.log_a);
         let pace = best as f64 / self.n as f64;
         let at = sample.map(|i| self.position[i as usize] as usize);
@@ -115,8 +194,19 @@ impl Data {
         while k < self.n {
             let end = (k + CHUNK).min(self.n);
             let mut agree = 0usize;
-            for j in k..end {
-                agree += usize::from(self.agrees(h, j, self.t2));
+            if end - k == CHUNK {
+                let (blocks, _) = self.blocks::<CHUNK>(k, end);
+                for (((x, y), u), v) in blocks {
+                    let mut lanes = [0u64; CHUNK];
+                    for l in 0..CHUNK {
+                        lanes[l] = u64::from(agrees(h, x[l], y[l], u[l], v[l], self.t2));
+                    }
+                    agree = lanes.iter().sum::<u64>() as usize;
+                }
+            } else {
+                for j in k..end {
+                    agree += usize::from(self.agrees(h, j, self.t2));
+                }
             }
             let own = at.iter().filter(|&&p| p >= k && p < end).count();
             let agree = agree.saturating_sub(own);
@@ -131,51 +221,65 @@ impl Data {
             }
             // Behind the best model's pace by 4 standard deviations and 5%.
             let expected = pace * k as f64;
-            if expected - inliers as f64 > 4.0 * expected.sqrt() + 0.05 * expected && k < self.n
-            {
+            if expected - inliers as f64 > 4.0 * expected.sqrt() + 0.05 * expected && k < self.n {
                 return Verdict::Outscored;
             }
         }
-        Verdict::Accepted { inliers: inliers + 4 }
+        Verdict::Accepted {
+            inliers: inliers + 4,
+        }
     }
 
     /// Inlier count and MSAC cost (sum of min(r^2, t^2), normalised units) over all points.
-    pub fn msac(&self, h: &[f64; 9]) -> (usize, f64) {
-        let (mut count, mut cost) = (0, 0.0);
-        for k in 0..self.n {
-            // Branch-free (min is NaN-safe here: r2 is never NaN, infinite at worst).
-            let r2 = self.residual2(h, k);
-            count += usize::from(r2 <= self.t2);
-            cost += r2.min(self.t2);
+    #[inline(always)]
+    fn msac_body(&self, h: &[f64; 9]) -> (usize, f64) {
+        // Branch-free, in LANES interleaved sums that vectorise (min is NaN-safe here: r2 is
+        // never NaN, infinite at worst).
+        let t2 = self.t2;
+        let (mut count, mut cost) = ([0u64; LANES], [0.0f64; LANES]);
+        let (blocks, whole) = self.blocks::<LANES>(0, self.n);
+        for (((x, y), u), v) in blocks {
+            for l in 0..LANES {
+                let r2 = residual2(h, x[l], y[l], u[l], v[l]);
+                count[l] += u64::from(r2 <= t2);
+                cost[l] += if r2 < t2 { r2 } else { t2 };
+            }
         }
-        (count, cost)
+        for (l, k) in (whole..self.n).enumerate() {
+            let r2 = self.residual2(h, k);
+            count[l] += u64::from(r2 <= t2);
+            cost[l] += r2.min(t2);
+        }
+        (count.iter().sum::<u64>() as usize, cost.iter().sum())
     }
 
     /// Squared transfer error of point k (evaluation order); infinite behind the horizon.
     #[inline(always)]
     fn residual2(&self, h: &[f64; 9], k: usize) -> f64 {
-        let (x, y) = (self.x[k], self.y[k]);
-        let w = h[6] * x + h[7] * y + h[8];
-        let iw = 1.0 / w;
-        let ex = (h[0] * x + h[1] * y + h[2]) * iw - self.u[k];
-        let ey = (h[3] * x + h[4] * y + h[5]) * iw - self.v[k];
-        let r2 = ex * ex + ey * ey;
-        if w > 0.0 && r2.is_finite() {
-            r2
-        } else {
-            f64::INFINITY
-        }
+        residual2(h, self.x[k], self.y[k], self.u[k], self.v[k])
     }
 
     /// Original indices of the points within squared threshold `t2` of h, in evaluation
     /// order (a fixed random order: any prefix is a random subset).
-    pub fn inliers(&self, h: &[f64; 9], t2: f64) -> Vec<u32> {
-        // Branch-free: about half the points agree, at random, which defeats prediction.
+    #[inline(always)]
+    fn inliers_body(&self, h: &[f64; 9], t2: f64) -> Vec<u32> {
+        // The tests vectorise; the compaction after them is branch-free, since about half the
+        // points agree, at random, which defeats prediction.
+        let mut agree = vec![0u8; self.n];
+        let (blocks, whole) = self.blocks::<LANES>(0, self.n);
+        for ((((x, y), u), v), a) in blocks.zip(agree.as_chunks_mut::<LANES>().0) {
+            for l in 0..LANES {
+                a[l] = u8::from(agrees(h, x[l], y[l], u[l], v[l], t2));
+            }
+        }
+        for k in whole..self.n {
+            agree[k] = u8::from(self.agrees(h, k, t2));
+        }
         let mut out = vec![0u32; self.n];
         let mut count = 0;
-        for k in 0..self.n {
+        for (k, &a) in agree.iter().enumerate() {
             out[count] = self.order[k];
-            count += usize::from(self.agrees(h, k, t2));
+            count += usize::from(a);
         }
         out.truncate(count);
         out

@@ -183,10 +183,16 @@ mod tests {
             s[r.clone()].iter().map(|&v| f64::from(v)).sum::<f64>() / r.len() as f64
         };
         let (inl, out) = (mean(0..n / 10), mean(n / 10..n));
-        assert!(inl > 8.0 * out && inl > 0.5, "inliers {inl}, outliers {out}");
+        assert!(
+            inl > 8.0 * out && inl > 0.5,
+            "inliers {inl}, outliers {out}"
+        );
         // The top of the ranking is mostly inliers.
         let rank = ranking(&s);
-        let top = rank[..200].iter().filter(|&&i| (i as usize) < n / 10).count();
+        let top = rank[..200]
+            .iter()
+            .filter(|&&i| (i as usize) < n / 10)
+            .count();
         assert!(top > 150, "{top} of the top 200 are inliers");
     }
 

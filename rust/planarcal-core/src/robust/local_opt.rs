@@ -16,12 +16,12 @@ use super::data::Data;
 /// polishing; a weakly supported one may be a near miss (three inliers and an outlier), which
 /// agrees with the truth over a wider band than the threshold and grows into it from there
 /// (measured at 90% outliers: starting at 4 t repairs 15% of such models, at 64 t 60%).
-const POLISH: [f64; 2] = [2.0, 1.0];
+const POLISH: [f64; 1] = [2.0];
 const GROW: [f64; 7] = [64.0, 32.0, 16.0, 8.0, 4.0, 2.0, 1.0];
 /// A model with fewer inliers than this fraction of the points is grown rather than polished.
 const WEAK_SUPPORT: f64 = 0.02;
 /// Refits at the final threshold until the inlier set settles.
-const MAX_SETTLE: usize = 2;
+const MAX_SETTLE: usize = 1;
 
 /// Most points a local refit uses: beyond this a least-squares fit is no better for scoring
 /// (the final refinement uses all inliers); a random subset, since `Data::inliers` lists

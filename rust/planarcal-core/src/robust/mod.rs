@@ -30,9 +30,9 @@ use crate::threads;
 use crate::Point;
 
 use data::{Data, Verdict};
-pub use sampler::Pcg32;
 use progressive::Progressive;
 use sampler::distinct_sample;
+pub use sampler::Pcg32;
 use sprt::{plain_iterations_needed, Sprt};
 
 /// How the robust search scores a hypothesis.
@@ -143,6 +143,9 @@ const PROBE: usize = 128;
 const GUIDE_BELOW: f64 = 0.3;
 /// Fewest points for which neighbourhoods say anything.
 const GUIDE_MIN_POINTS: usize = 100;
+
+/// Refits of the final model to its inlier set.
+const FINAL_ROUNDS: usize = 2;
 
 /// SPRT's starting inlier ratio and agreement rate of wrong models, before any model is found.
 const INITIAL_EPSILON: f64 = 0.01;
@@ -301,8 +304,6 @@ fn draw(progressive: &mut Option<Progressive>, rng: &mut Pcg32, n: u32) -> [u32;
     s
 }
 
-pub static DBG_MSAC: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-pub static DBG_TESTED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let n = data.n as u32;
     let mut progressive = o
@@ -324,7 +325,9 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let mut stale = false;
     let left = |iterations: usize, k_max: f64, p: &Option<Progressive>| {
         let uniform = k_max - iterations as f64;
-        let progressive = p.as_ref().map_or(f64::INFINITY, |p| p.needed - p.drawn as f64);
+        let progressive = p
+            .as_ref()
+            .map_or(f64::INFINITY, |p| p.needed - p.drawn as f64);
         uniform.min(progressive)
     };
     while left(iterations, k_max, &progressive) > 0.0 {
@@ -370,19 +373,16 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
             match verdict {
                 Verdict::Outscored => {}
                 Verdict::Rejected { tested, inliers } => {
-                    DBG_TESTED.fetch_add(tested, std::sync::atomic::Ordering::Relaxed);
                     rejected_tested += tested;
                     rejected_agreeing += inliers;
                 }
                 Verdict::Accepted { inliers } => {
-                    DBG_TESTED.fetch_add(1_000_000, std::sync::atomic::Ordering::Relaxed);
                     // SPRT counted the inliers: a model with clearly fewer than the best's
                     // cannot have a lower MSAC cost in practice; skip its full scoring.
                     if best.is_some_and(|b| (inliers as f64) < 0.95 * b.inliers as f64) {
                         continue;
                     }
                     let (inliers, cost) = data.msac(&h);
-                    DBG_MSAC.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     if best.is_some_and(|b| cost >= b.cost) {
                         continue;
                     }
@@ -539,8 +539,8 @@ fn squared_errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Vec<f64> {
 }
 
 /// The final model: refined on its inliers in the caller's units (Levenberg-Marquardt from
-/// the search's locally optimised model, itself a least-squares fit), the mask recomputed
-/// from it until the two agree (at most 3 rounds).
+/// the search's locally optimised model, itself a least-squares fit), then once more if that
+/// changed the inlier set. The mask is always the final H's.
 fn finish(
     data: &Data,
     src: &[Point],
@@ -562,7 +562,7 @@ fn finish(
     idx.sort_unstable();
     let mut start = data.denormalize(&best.h);
     let mut fitted = None;
-    for _ in 0..3 {
+    for _ in 0..FINAL_ROUNDS {
         let s: Vec<Point> = idx.iter().map(|&i| src[i as usize]).collect();
         let d: Vec<Point> = idx.iter().map(|&i| dst[i as usize]).collect();
         // From the search's model; a fresh linear fit if that cannot be refined.
