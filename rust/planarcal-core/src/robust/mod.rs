@@ -141,9 +141,13 @@ const MIN_SAMPLE_AREA: f64 = 1e-6;
 /// ratio of the best model below which it does (without caller-given scores).
 const PROBE: usize = 128;
 const GUIDE_BELOW: f64 = 0.3;
-/// Fewest points for which neighbourhoods say anything.
-const GUIDE_MIN_POINTS: usize = 100;
+/// Fewest points for which neighbourhoods say anything: a neighbourhood (about 18 points) must
+/// be a small part of the whole, or outliers in clusters look as consistent as inliers
+/// (measured: at 110 points, clustered outliers ranked level with the inliers).
+const GUIDE_MIN_POINTS: usize = 500;
 
+/// Most concentration steps after the LMedS search.
+const MAX_CONCENTRATION_STEPS: usize = 5;
 /// Refits of the final model to its inlier set.
 const FINAL_ROUNDS: usize = 2;
 
@@ -212,7 +216,7 @@ pub fn estimate_robust(
         Method::Msac => msac_search(&data, options, &mut rng),
         Method::Lmeds => lmeds_search(&data, options, &mut rng),
     };
-    Ok(finish(&data, src, dst, search, options))
+    Ok(finish(&data, src, dst, search))
 }
 
 /// Estimates many independent problems at once, in parallel (each problem on one thread).
@@ -325,9 +329,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let mut stale = false;
     let left = |iterations: usize, k_max: f64, p: &Option<Progressive>| {
         let uniform = k_max - iterations as f64;
-        let progressive = p
-            .as_ref()
-            .map_or(f64::INFINITY, |p| p.needed - p.drawn as f64);
+        let progressive = p.as_ref().map_or(f64::INFINITY, Progressive::left);
         uniform.min(progressive)
     };
     while left(iterations, k_max, &progressive) > 0.0 {
@@ -457,11 +459,7 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         iterations += batch;
         let medians = score_batch(data, &samples, o.parallel, |s| {
             let h = hypothesis(data, s)?;
-            let mut r = Vec::with_capacity(data.n);
-            data.residuals2_into(&h, &mut r);
-            let mid = r.len() / 2;
-            let (_, m, _) = r.select_nth_unstable_by(mid, f64::total_cmp);
-            let median = *m;
+            let median = median_residual2(data, &h);
             median.is_finite().then_some((h, median))
         });
         for (h, median) in medians.into_iter().flatten() {
@@ -473,6 +471,29 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                 });
             }
         }
+    }
+    // Concentration steps (as in FAST-LTS, Rousseeuw & Van Driessen 2006): refit to the half
+    // of the points the model fits best while that lowers the median. The minimal model's
+    // median is inflated by its sample's noise, and so would be the scale taken from it.
+    let mut lo_runs = 0;
+    while let Some(b) = best {
+        if lo_runs >= MAX_CONCENTRATION_STEPS {
+            break;
+        }
+        lo_runs += 1;
+        let half = data.inliers(&b.h, b.cost);
+        let Some(h) = local_opt::fit(data, &half) else {
+            break;
+        };
+        let median = median_residual2(data, &h);
+        if !(median < b.cost) {
+            break;
+        }
+        best = Some(Model {
+            h,
+            inliers: 0,
+            cost: median,
+        });
     }
     // The robust scale: 1.4826 (1 + 5 / (n - 4)) sqrt(median); inliers within 2.5 sigma.
     let t2 = best.map_or(0.0, |b| {
@@ -491,8 +512,16 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         stop: StopReason::Converged,
         t2,
         delta: geometric_delta(data),
-        lo_runs: 0,
+        lo_runs,
     }
+}
+
+/// The median squared residual of h over all points (LMedS's cost).
+fn median_residual2(data: &Data, h: &[f64; 9]) -> f64 {
+    let mut r = Vec::with_capacity(data.n);
+    data.residuals2_into(h, &mut r);
+    let mid = r.len() / 2;
+    *r.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// The chance that a point falls within the threshold of a wrong model's prediction: the
@@ -538,16 +567,10 @@ fn squared_errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Vec<f64> {
         .collect()
 }
 
-/// The final model: refined on its inliers in the caller's units (Levenberg-Marquardt from
-/// the search's locally optimised model, itself a least-squares fit), then once more if that
-/// changed the inlier set. The mask is always the final H's.
-fn finish(
-    data: &Data,
-    src: &[Point],
-    dst: &[Point],
-    search: Search,
-    o: &RobustOptions,
-) -> RobustResult {
+/// The final model: fitted to the search's inliers in the caller's units (normalised DLT,
+/// then Levenberg-Marquardt), then refined once more if that changed the inlier set. The
+/// mask is always the final H's.
+fn finish(data: &Data, src: &[Point], dst: &[Point], search: Search) -> RobustResult {
     let n = data.n;
     let threshold = search.t2.sqrt() / data.dst_norm.scale;
     let Some(best) = search.best else {
@@ -562,12 +585,19 @@ fn finish(
     idx.sort_unstable();
     let mut start = data.denormalize(&best.h);
     let mut fitted = None;
-    for _ in 0..FINAL_ROUNDS {
+    for round in 0..FINAL_ROUNDS {
         let s: Vec<Point> = idx.iter().map(|&i| src[i as usize]).collect();
         let d: Vec<Point> = idx.iter().map(|&i| dst[i as usize]).collect();
-        // From the search's model; a fresh linear fit if that cannot be refined.
-        let fit = refine_homography(&s, &d, &start)
-            .or_else(|_| estimate(&s, &d, Solver::NormalizedDlt, true));
+        // First the gold-standard pipeline on the inlier set (a minimal model, the search's
+        // best when local optimisation had too few points, can be a poor start), then from
+        // the previous round's fit; either way the other if it fails.
+        let fit = if round == 0 {
+            estimate(&s, &d, Solver::NormalizedDlt, true)
+                .or_else(|_| refine_homography(&s, &d, &start))
+        } else {
+            refine_homography(&s, &d, &start)
+                .or_else(|_| estimate(&s, &d, Solver::NormalizedDlt, true))
+        };
         let Ok(fit) = fit else {
             break;
         };

@@ -113,6 +113,15 @@ impl Prosac {
         }
     }
 
+    /// How many of the best-ranked correspondences samples are drawn from now.
+    pub fn subset(&self) -> u32 {
+        if self.samples >= self.growth_max {
+            self.n_total
+        } else {
+            self.n
+        }
+    }
+
     /// The next sample: indices into the ranking (0 = best).
     pub fn sample(&mut self, rng: &mut Pcg32, out: &mut [u32; 4]) {
         self.samples += 1;
