@@ -111,7 +111,8 @@ type Blocks<'a, const B: usize> = (
 );
 
 impl Data {
-    /// Points range.start.. in blocks of B (range.start a multiple of B or not, any).
+    /// Points from..to in blocks of B, and where the whole blocks end.
+    #[inline(always)]
     fn blocks<const B: usize>(&self, from: usize, to: usize) -> Blocks<'_, B> {
         let (x, _) = self.x[from..to].as_chunks::<B>();
         let (y, _) = self.y[from..to].as_chunks::<B>();

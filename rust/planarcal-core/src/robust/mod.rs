@@ -313,7 +313,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let mut progressive = o
         .scores
         .as_deref()
-        .map(|s| Progressive::new(ranking(s), o.max_iters));
+        .map(|s| Progressive::new(ranking(s), o.max_iters, 0));
     // Start by letting through any model with more support than chance: a model from three
     // inliers and one outlier agrees with only a few points, and local optimisation grows it
     // into the true model. The test sharpens as soon as a best model exists.
@@ -339,20 +339,26 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         if !guide_checked && iterations >= PROBE {
             guide_checked = true;
             if best.is_none_or(|b| (b.inliers as f64) < GUIDE_BELOW * data.n as f64) {
-                let rank = guided::ranking(&guided::neighbourhood_scores(&data.src, &data.dst));
-                progressive = Some(Progressive::new(rank, o.max_iters - iterations));
+                let scores = guided::neighbourhood_scores(&data.src, &data.dst);
+                let consistent = scores.iter().filter(|&&s| s > 0).count();
+                let rank = guided::ranking(&scores);
+                let left = o.max_iters - iterations;
+                progressive = Some(Progressive::new(rank, left, consistent));
                 stale = best.is_some();
             }
         }
-        // The stopping rule of a new ranking, or of a model found before delta settled.
+        // The best model's inliers, and the stopping rule of a new ranking or of a model
+        // found before delta settled.
         if stale {
             stale = false;
-            if let (Some(p), Some(b)) = (progressive.as_mut(), best) {
+            if let Some(b) = best {
                 is_inlier.fill(false);
                 for i in data.inliers(&b.h, data.t2) {
                     is_inlier[i as usize] = true;
                 }
-                p.update(&is_inlier, &sprt, sprt.delta, o.confidence);
+                if let Some(p) = progressive.as_mut() {
+                    p.update(&is_inlier, &sprt, sprt.delta, o.confidence);
+                }
             }
         }
         // Batches grow from FIRST_BATCH to BATCH in each phase, so that the stopping rule and
@@ -368,7 +374,14 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         }
         iterations += batch;
         let (test, pace) = (sprt, best.map_or(0, |b| b.inliers));
+        let known = &is_inlier;
         let verdicts = score_batch(data, &samples, o.parallel, |s| {
+            // Four inliers of the best model give (nearly) the best model again, which has
+            // been optimised already: such a sample is drawn, and counts, but needs no
+            // scoring. With a clean ranking most samples are like this.
+            if s.iter().all(|&i| known[i as usize]) {
+                return None;
+            }
             hypothesis(data, s).map(|h| (h, data.sprt(&h, s, &test, pace)))
         });
         for (h, verdict) in verdicts.into_iter().flatten() {
@@ -385,7 +398,11 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                         continue;
                     }
                     let (inliers, cost) = data.msac(&h);
-                    if best.is_some_and(|b| cost >= b.cost) {
+                    // A model with more support but a higher cost is optimised too: a minimal
+                    // fit of the truth scatters its inliers across the threshold, and can
+                    // cost more than a tight rival structure until it is refitted.
+                    let promising = best.is_none_or(|b| cost < b.cost || inliers > b.inliers);
+                    if !promising {
                         continue;
                     }
                     let mut model = Model { h, inliers, cost };
@@ -397,11 +414,14 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                             model = Model { h, inliers, cost };
                         }
                     }
+                    if best.is_some_and(|b| model.cost >= b.cost) {
+                        continue;
+                    }
                     best = Some(model);
                     let epsilon = model.inliers as f64 / data.n as f64;
                     sprt = Sprt::new(epsilon, sprt.delta);
                     k_max = (o.max_iters as f64).min(sprt.iterations_needed(o.confidence, epsilon));
-                    stale = progressive.is_some();
+                    stale = true;
                 }
             }
         }

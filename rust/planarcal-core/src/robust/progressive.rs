@@ -1,16 +1,18 @@
 //! Progressive sampling (PROSAC, Chum & Matas 2005) over a ranking of the correspondences,
 //! with its stopping rule: the search may stop once, for some prefix U_n of the ranking in
-//! which the best model's support is not due to chance, sampling has reached U_n and enough
-//! samples have been drawn for `confidence` that an all-inlier sample of U_n would have been
-//! found (maximality). With a good ranking the top of it is mostly inliers, and the search
-//! ends after hundreds of samples where uniform sampling needs tens of thousands.
+//! which the best model's support is not due to chance, enough samples have been drawn from
+//! U_n (or subsets containing it) for `confidence` that an all-inlier sample of U_n would
+//! have been found (maximality). With a good ranking the top of it is mostly inliers, and
+//! the search ends after hundreds of samples where uniform sampling needs tens of thousands.
 //!
-//! One guard of our own: U_n must hold at least twice the best model's support. Maximality
-//! only speaks of support within U_n, and a second structure (another plane, a repeated
-//! pattern) can fill the very top of a ranking by local consistency while the true model
-//! has more support overall; a prefix that has room for a rival as large as the best model
-//! lets sampling find it (measured: with a second plane of 70% of the inliers' size, small
-//! prefixes stopped the search on the wrong plane).
+//! Two changes of our own. Maximality only speaks of support within U_n, and a second
+//! structure (another plane, a repeated pattern) can fill the top of a ranking by local
+//! consistency while the true model has more support overall (measured: with an exact
+//! second plane of 70% of the inliers' size, small prefixes stopped the search on the wrong
+//! plane). So U_n has a floor: at least twice the best model's support, and, for a ranking by
+//! neighbourhood consistency, every point with any consistency at all, where every locally
+//! consistent structure is. And once a model has chosen U_n, sampling widens to it at once
+//! rather than at PROSAC's pace of one point per sample.
 
 use super::sampler::{Pcg32, Prosac};
 use super::sprt::Sprt;
@@ -32,11 +34,13 @@ pub struct Progressive {
     /// sampling must have reached first.
     pub needed: f64,
     prefix: u32,
+    floor: usize,
 }
 
 impl Progressive {
-    /// `samples` bounds the draws: by then sampling is uniform over all points.
-    pub fn new(rank: Vec<u32>, samples: usize) -> Self {
+    /// `samples` bounds the draws: by then sampling is uniform over all points. `floor` is
+    /// the smallest prefix the stopping rule may use (see `update`).
+    pub fn new(rank: Vec<u32>, samples: usize, floor: usize) -> Self {
         let n = rank.len() as u32;
         Progressive {
             rank,
@@ -44,6 +48,7 @@ impl Progressive {
             drawn: 0,
             needed: f64::INFINITY,
             prefix: n,
+            floor,
         }
     }
 
@@ -58,11 +63,9 @@ impl Progressive {
         self.left() <= 0.0
     }
 
-    /// Samples still to draw before the rule is met (at least one per point the subset must
-    /// still grow by, which is PROSAC's slowest rate).
+    /// Samples still to draw before the rule is met.
     pub fn left(&self) -> f64 {
-        let grow = f64::from(self.prefix.saturating_sub(self.sampler.subset()));
-        (self.needed - self.drawn as f64).max(grow)
+        self.needed - self.sampler.drawn_within(self.prefix) as f64
     }
 
     /// Updates the stopping rule for a new best model, given which points are its inliers
@@ -81,7 +84,7 @@ impl Progressive {
         }
         let mut support = 0usize;
         let mut counted = 0usize;
-        let mut size = (2 * overall).clamp(8.min(total), total);
+        let mut size = (2 * overall).max(self.floor).clamp(8.min(total), total);
         loop {
             while counted < size {
                 support += usize::from(is_inlier[self.rank[counted] as usize]);
@@ -98,9 +101,7 @@ impl Progressive {
                     } else {
                         ((1.0 - confidence).ln() / (1.0 - p).ln()).ceil().max(1.0)
                     };
-                    // The cheaper of the two: samples still to draw for this prefix.
-                    let cost = |k: f64, size: usize| k.max(size as f64);
-                    if cost(k, size) < cost(needed, prefix) {
+                    if k < needed {
                         needed = k;
                         prefix = size;
                     }
@@ -113,6 +114,7 @@ impl Progressive {
         }
         self.needed = needed;
         self.prefix = prefix as u32;
+        self.sampler.widen_to(self.prefix);
     }
 }
 
@@ -145,7 +147,7 @@ mod tests {
         // The top 100 ranked points are inliers; 10% of the rest are.
         let rank: Vec<u32> = (0..n as u32).collect();
         let is_inlier: Vec<bool> = (0..n).map(|i| i < 100 || i % 10 == 0).collect();
-        let mut p = Progressive::new(rank, 10_000);
+        let mut p = Progressive::new(rank, 10_000, 0);
         let sprt = Sprt::new(0.19, 0.001);
         p.update(&is_inlier, &sprt, 0.001, 0.999);
         // A prefix of twice the support (380 points, a third of them inliers) asks for about
@@ -163,10 +165,16 @@ mod tests {
         let n = 1000;
         let rank: Vec<u32> = (0..n as u32).collect();
         let is_inlier: Vec<bool> = (0..n).map(|i| i < 20 || (50..70).contains(&i)).collect();
-        let mut p = Progressive::new(rank, 10_000);
+        let mut p = Progressive::new(rank, 10_000, 0);
         p.update(&is_inlier, &Sprt::new(0.04, 0.001), 0.001, 0.999);
-        // The prefix must hold 80 points, the rival's 30 among them.
-        assert!(p.left() >= 80.0, "{}", p.left());
+        // The prefix must hold 80 points, the rival's 30 among them, and sampling reaches it.
+        assert!(p.prefix >= 80, "{}", p.prefix);
+        assert!(p.sampler.subset() >= 80);
+        let mut rng = Pcg32::new(1, 1);
+        let mut s = [0u32; 4];
+        let before = p.left();
+        p.sample(&mut rng, &mut s);
+        assert_eq!(p.left(), before - 1.0);
     }
 
     #[test]

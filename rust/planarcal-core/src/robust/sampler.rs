@@ -91,6 +91,8 @@ pub struct Prosac {
     samples: u64,
     /// Samples after which PROSAC is plain uniform sampling.
     growth_max: u64,
+    /// reached[k]: samples drawn before the subset held k points (for k <= n).
+    reached: Vec<u64>,
 }
 
 impl Prosac {
@@ -110,7 +112,29 @@ impl Prosac {
             t_n_prime: 1,
             samples: 0,
             growth_max,
+            reached: vec![0; Self::M as usize + 1],
         }
+    }
+
+    /// Samples drawn from a subset of at least the `size` best (each of them uniform over
+    /// some subset that contains those `size`).
+    pub fn drawn_within(&self, size: u32) -> u64 {
+        match self.reached.get(size as usize) {
+            Some(&before) => self.samples - before,
+            None => self.samples.saturating_sub(self.growth_max),
+        }
+    }
+
+    /// Draws from the `size` best from now on (if that is more than now), as though the
+    /// schedule had reached them.
+    pub fn widen_to(&mut self, size: u32) {
+        let size = size.min(self.n_total);
+        while self.n < size {
+            self.t_n *= f64::from(self.n + 1) / f64::from(self.n + 1 - Self::M);
+            self.n += 1;
+            self.reached.push(self.samples);
+        }
+        self.t_n_prime = self.t_n_prime.max(self.samples + 1);
     }
 
     /// How many of the best-ranked correspondences samples are drawn from now.
@@ -130,17 +154,21 @@ impl Prosac {
             return;
         }
         if self.samples >= self.t_n_prime && self.n < self.n_total {
-            // Grow the subset: T_{n+1} = T_n (n + 1) / (n + 1 - m).
+            // Grow the subset: T_{n+1} = T_n (n + 1) / (n + 1 - m); this sample is the
+            // newest point n-1 and m-1 others from the first n-1.
             let next = self.t_n * f64::from(self.n + 1) / f64::from(self.n + 1 - Self::M);
             self.t_n_prime += (next - self.t_n).ceil().max(1.0) as u64;
             self.t_n = next;
             self.n += 1;
+            self.reached.push(self.samples - 1);
+            let mut rest = [0u32; 3];
+            distinct_sample(rng, self.n - 1, &mut rest);
+            out[0] = self.n - 1;
+            out[1..].copy_from_slice(&rest);
+        } else {
+            // Between growth steps: uniform over the subset.
+            distinct_sample(rng, self.n, out);
         }
-        // The newest point n-1 and m-1 others from the first n-1.
-        let mut rest = [0u32; 3];
-        distinct_sample(rng, self.n - 1, &mut rest);
-        out[0] = self.n - 1;
-        out[1..].copy_from_slice(&rest);
     }
 }
 
