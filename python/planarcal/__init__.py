@@ -60,6 +60,7 @@ from planarcal.homography import (
     transform_points,
 )
 from planarcal.images import load_image
+from planarcal.objects import DetectedObject, detect_objects, locate_objects
 from planarcal.robust import (
     RobustMethod,
     RobustResult,
@@ -67,7 +68,6 @@ from planarcal.robust import (
     estimate_homography_robust,
     estimate_homography_robust_batch,
 )
-from planarcal.objects import DetectedObject, detect_objects, locate_objects
 
 # A child forked after the thread pool started must not use it (its threads did not survive
 # the fork): the core then runs every batch on the calling thread.

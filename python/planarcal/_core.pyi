@@ -32,6 +32,7 @@ def estimate_homography(
 def find_homography(
     src: ArrayLike, dst: ArrayLike
 ) -> tuple[NDArray[np.float64] | None, NDArray[np.uint8]]: ...
+
 _RobustTuple = tuple[
     NDArray[np.float64] | None, NDArray[np.bool_], int, int, str, float, float, int
 ]

@@ -273,7 +273,7 @@ fn hopeless_data_gets_no_model() {
     assert_eq!(r.stop, StopReason::NoConsensus);
     assert!(r.inliers.iter().all(|&b| !b));
     // Every source point the same: nothing to fit.
-    let r = estimate_robust(&vec![[1.0, 2.0]; 10], &dst[..10], &RobustOptions::default());
+    let r = estimate_robust(&[[1.0, 2.0]; 10], &dst[..10], &RobustOptions::default());
     assert!(r.unwrap().h.is_none());
 }
 

@@ -138,6 +138,7 @@ impl Prosac {
     }
 
     /// How many of the best-ranked correspondences samples are drawn from now.
+    #[cfg(test)]
     pub fn subset(&self) -> u32 {
         if self.samples >= self.growth_max {
             self.n_total
