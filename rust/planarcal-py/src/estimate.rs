@@ -8,7 +8,7 @@ use crate::convert::points2;
 use crate::errors::{invalid, to_py};
 
 /// OpenCV's (H or None, mask) pair.
-type HomographyAndMask<'py> = (Option<Bound<'py, PyArray2<f64>>>, Bound<'py, PyArray2<u8>>);
+pub type HomographyAndMask<'py> = (Option<Bound<'py, PyArray2<f64>>>, Bound<'py, PyArray2<u8>>);
 
 /// Above this many points (or with refinement) the fit runs with the GIL released.
 const DETACH_MIN_POINTS: usize = 256;

@@ -12,7 +12,7 @@ use pyo3::types::PyList;
 
 use crate::convert::{f64_array, points2, Points2};
 use crate::errors::{invalid, to_py};
-use crate::estimate::matrix_out;
+use crate::estimate::{matrix_out, HomographyAndMask};
 
 /// (H or None, inlier mask (N,) bool, n_inliers, iterations, stop, rms, threshold, lo_runs).
 type ResultTuple<'py> = (
@@ -178,7 +178,7 @@ pub fn find_homography_robust<'py>(
     max_iters: i64,
     confidence: f64,
     ordered: bool,
-) -> PyResult<(Option<Bound<'py, PyArray2<f64>>>, Bound<'py, PyArray2<u8>>)> {
+) -> PyResult<HomographyAndMask<'py>> {
     let mut o = options(threshold, confidence, max_iters, 0, method)?;
     let (s, d) = (points2(src, "srcPoints")?, points2(dst, "dstPoints")?);
     let (s, d) = (s.as_points(), d.as_points());
