@@ -64,8 +64,10 @@ Set ``RAYON_NUM_THREADS`` to limit the threads planarcal uses.
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import dataclasses
 import gc
+import hashlib
 import math
 import os
 import platform
@@ -200,7 +202,6 @@ class Contender:
     """Something that fits a homography to a problem; ``seed`` is the trial number."""
 
     name: str
-    family: Literal["planarcal", "opencv"]
     estimate: Callable[[Problem, int], Homography]
 
 
@@ -209,7 +210,6 @@ class Tally:
     """A contender's results over all trials (or pairs) of one scenario."""
 
     name: str
-    family: Literal["planarcal", "opencv", "reference"]
     times_ms: list[float] = dataclasses.field(default_factory=list)
     errors_px: list[float] = dataclasses.field(default_factory=list)
     """Per trial; inf where no H was returned."""
@@ -247,14 +247,19 @@ class Target:
     passed: bool
 
 
+@dataclasses.dataclass(frozen=True)
+class Table:
+    headers: tuple[str, ...]
+    right_aligned: tuple[bool, ...]
+    rows: list[tuple[str, ...]]
+
+
 @dataclasses.dataclass
 class Section:
     """One titled block of the report: tables and notes."""
 
     title: str
-    tables: list[tuple[tuple[str, ...], tuple[bool, ...], list[tuple[str, ...]]]] = (
-        dataclasses.field(default_factory=list)
-    )
+    tables: list[Table] = dataclasses.field(default_factory=list)
     notes: list[str] = dataclasses.field(default_factory=list)
     targets: list[Target] = dataclasses.field(default_factory=list)
 
@@ -322,7 +327,7 @@ def opencv_contender(flag_name: str) -> Contender:
     def estimate(problem: Problem, seed: int) -> Homography:
         return opencv_find_homography(problem.src, problem.dst, flag)
 
-    return Contender(f"cv2 {flag_name}", "opencv", estimate)
+    return Contender(f"cv2 {flag_name}", estimate)
 
 
 def opencv_prosac(problem: Problem, seed: int) -> Homography:
@@ -334,15 +339,11 @@ def opencv_prosac(problem: Problem, seed: int) -> Homography:
     )
 
 
-PLANARCAL = Contender("planarcal estimate_homography_robust", "planarcal", planarcal_robust)
+PLANARCAL = Contender("planarcal estimate_homography_robust", planarcal_robust)
 PLANARCAL_WITH_SCORES = Contender(
-    "planarcal estimate_homography_robust, scores (PROSAC)",
-    "planarcal",
-    planarcal_robust_with_scores,
+    "planarcal estimate_homography_robust, scores (PROSAC)", planarcal_robust_with_scores
 )
-PLANARCAL_DROP_IN = Contender(
-    "planarcal.findHomography(RANSAC) drop-in", "planarcal", planarcal_drop_in
-)
+PLANARCAL_DROP_IN = Contender("planarcal.findHomography(RANSAC) drop-in", planarcal_drop_in)
 
 
 def opencv_contenders(include_lmeds: bool) -> list[Contender]:
@@ -417,7 +418,8 @@ def random_homography(rng: np.random.Generator) -> Array:
     similarity = np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]])
     tilt = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [perspective[0], perspective[1], 1.0]])
     H: Array = translation(centre + shift) @ similarity @ tilt @ translation(-centre)
-    return H / H[2, 2]
+    normalised: Array = H / H[2, 2]
+    return normalised
 
 
 @dataclasses.dataclass(frozen=True)
@@ -429,8 +431,7 @@ class SyntheticTrial:
 
 def synthetic_trial(scenario: Scenario, trial: int) -> SyntheticTrial:
     """Trial ``trial`` of the scenario: the same on every run."""
-    scenario_index = "abcdefghijklmnopqrstuvwxyz".index(scenario.key)
-    rng = np.random.default_rng((SEED, scenario_index, trial))
+    rng = np.random.default_rng((SEED, ord(scenario.key), trial))
     n = scenario.n_points
     image_size = np.array([IMAGE_WIDTH, IMAGE_HEIGHT])
     H = random_homography(rng)
@@ -450,11 +451,11 @@ def bench_scenario(scenario: Scenario, settings: Settings) -> Section:
     include_lmeds = scenario.outlier_fraction < LMEDS_MAX_OUTLIER_FRACTION
     flags = opencv_contenders(include_lmeds)
     contenders = [PLANARCAL, PLANARCAL_DROP_IN, *flags]
-    tallies = {c.name: Tally(c.name, c.family) for c in contenders}
+    tallies = {c.name: Tally(c.name) for c in contenders}
     batch_name = "planarcal estimate_homography_robust_batch (per problem)"
     gold_name = "reference: gold standard on the true inliers"
-    tallies[batch_name] = Tally(batch_name, "planarcal")
-    tallies[gold_name] = Tally(gold_name, "reference", timed=False)
+    tallies[batch_name] = Tally(batch_name)
+    tallies[gold_name] = Tally(gold_name, timed=False)
     iterations: list[int] = []
     stop_reasons: Counter[str] = Counter()
 
@@ -488,7 +489,7 @@ def bench_scenario(scenario: Scenario, settings: Settings) -> Section:
     # The batch: all problems in one call (the same seed for each, as the API takes one).
     pairs = [(t.problem.src, t.problem.dst) for t in trials]
     batch_times: list[float] = []
-    batch_results: list[Any] = []
+    batch_results: list[pc.RobustResult] = []
     for _ in range(settings.batch_repeats):
         gc.disable()
         try:
@@ -521,9 +522,7 @@ def bench_scenario(scenario: Scenario, settings: Settings) -> Section:
     return section
 
 
-def synthetic_table(
-    tallies: Sequence[Tally], ours: Tally, n_trials: int
-) -> tuple[tuple[str, ...], tuple[bool, ...], list[tuple[str, ...]]]:
+def synthetic_table(tallies: Sequence[Tally], ours: Tally, n_trials: int) -> Table:
     headers = (
         "contender",
         "median time (ms)",
@@ -532,7 +531,7 @@ def synthetic_table(
         "max error (px)",
         f"failures (of {n_trials})",
     )
-    rows = []
+    rows: list[tuple[str, ...]] = []
     for tally in tallies:
         rows.append(
             (
@@ -544,7 +543,7 @@ def synthetic_table(
                 format_failures(tally, SYNTHETIC_FAILURE_PX),
             )
         )
-    return headers, (False, True, True, True, True, True), rows
+    return Table(headers, (False, True, True, True, True, True), rows)
 
 
 def fastest(tallies: Sequence[Tally]) -> Tally:
@@ -587,6 +586,10 @@ def synthetic_notes(
         f"{max(iterations)}; stop reasons: "
         + ", ".join(f"{reason} {count}" for reason, count in stop_reasons.most_common()),
     ]
+    notes.append(
+        "the batch row is one call on all the trials' problems (seed 0 for each), warm and "
+        "spread over the cores; the other rows are single cold calls"
+    )
     if scenario.outlier_fraction >= LMEDS_MAX_OUTLIER_FRACTION:
         notes.append(
             f"LMEDS not run: it needs under {LMEDS_MAX_OUTLIER_FRACTION:.0%} outliers "
@@ -682,7 +685,7 @@ class Features:
 
 
 def detect_features(grey: NDArray[np.uint8], kind: Literal["SIFT", "ORB"]) -> Features:
-    detector = cv2.SIFT_create() if kind == "SIFT" else cv2.ORB_create(nfeatures=ORB_FEATURES)
+    detector = cv2.SIFT.create() if kind == "SIFT" else cv2.ORB.create(nfeatures=ORB_FEATURES)
     keypoints, descriptors = detector.detectAndCompute(grey, None)
     points = np.array([k.pt for k in keypoints], dtype=np.float64).reshape(-1, 2)
     return Features(points, descriptors)
@@ -727,8 +730,9 @@ def bench_real(settings: Settings) -> list[Section]:
             centres[index] = pc.detect_board(str(path), REAL_BOARD).image_points
         except pc.BoardNotFoundError as error:
             notes.append(f"{path.name}: board not detected, its pairs skipped ({error})")
-    greys = {
-        index: cv2.imread(str(paths[index]), cv2.IMREAD_GRAYSCALE) for index in sorted(centres)
+    greys: dict[int, NDArray[np.uint8]] = {
+        index: np.asarray(cv2.imread(str(paths[index]), cv2.IMREAD_GRAYSCALE), dtype=np.uint8)
+        for index in sorted(centres)
     }
     sections = []
     for kind in ("SIFT", "ORB"):
@@ -748,26 +752,27 @@ def bench_real(settings: Settings) -> list[Section]:
                             centres[j],
                         )
                     )
-        section = bench_real_pairs(pairs, kind, settings)
+        section = bench_real_pairs(pairs, settings)
         section.title = f"{title}; {kind} matches, ratio test {LOWE_RATIO:g}"
         section.notes = notes + section.notes
         sections.append(section)
     return sections
 
 
-def bench_real_pairs(pairs: Sequence[RealPair], kind: str, settings: Settings) -> Section:
+def bench_real_pairs(pairs: Sequence[RealPair], settings: Settings) -> Section:
+    """Every contender on every pair: the summary table and the per-pair table."""
     outlier_fractions = [1.0 - p.n_on_truth / max(len(p.problem.src), 1) for p in pairs]
     include_lmeds = all(f < LMEDS_MAX_OUTLIER_FRACTION for f in outlier_fractions)
     flags = opencv_contenders(include_lmeds)
-    prosac = Contender("cv2 USAC_PROSAC (matches sorted by score)", "opencv", opencv_prosac)
+    prosac = Contender("cv2 USAC_PROSAC (matches sorted by score)", opencv_prosac)
     contenders = [PLANARCAL, PLANARCAL_WITH_SCORES, PLANARCAL_DROP_IN, *flags, prosac]
-    tallies = {c.name: Tally(c.name, c.family) for c in contenders}
+    tallies = {c.name: Tally(c.name) for c in contenders}
     truth_name = "reference: the ground truth (fitted to the centres)"
     oracle_name = f"reference: refit of the matches within {ON_TRUTH_PX:g} px of the truth"
-    tallies[truth_name] = Tally(truth_name, "reference", timed=False)
-    tallies[oracle_name] = Tally(oracle_name, "reference", timed=False)
+    tallies[truth_name] = Tally(truth_name, timed=False)
+    tallies[oracle_name] = Tally(oracle_name, timed=False)
 
-    pair_rows = []
+    pair_rows: list[tuple[str, ...]] = []
     for pair_number, pair in enumerate(pairs):
         problem = pair.problem
         if len(problem.src) >= 4:
@@ -810,7 +815,7 @@ def bench_real_pairs(pairs: Sequence[RealPair], kind: str, settings: Settings) -
         f"failures (of {len(pairs)} pairs)",
     )
     section.tables.append(
-        (
+        Table(
             headers,
             (False, True, True, True, True),
             [
@@ -826,7 +831,7 @@ def bench_real_pairs(pairs: Sequence[RealPair], kind: str, settings: Settings) -
         )
     )
     section.tables.append(
-        (
+        Table(
             (
                 "pair",
                 "matches",
@@ -846,6 +851,8 @@ def bench_real_pairs(pairs: Sequence[RealPair], kind: str, settings: Settings) -
         f"matches agreeing with the truth: {sum(p.n_on_truth for p in pairs)} of "
         f"{sum(len(p.problem.src) for p in pairs)} over the {len(pairs)} pairs "
         f"(outliers {min(outlier_fractions):.0%}-{max(outlier_fractions):.0%} per pair)",
+        "the refit reference knows which matches are right: where it fails too, the right "
+        "matches are too few or too bunched to fix H over the board, and no estimator can",
     ]
     if not include_lmeds:
         n_over = sum(f >= LMEDS_MAX_OUTLIER_FRACTION for f in outlier_fractions)
@@ -914,6 +921,7 @@ def environment(settings: Settings) -> list[tuple[str, str]]:
         ("numpy", np.__version__),
         ("Python", f"{platform.python_version()} ({platform.python_implementation()})"),
         ("CPU", f"{cpu_model()}, os.cpu_count() = {os.cpu_count()}"),
+        ("parallel throughput", parallel_throughput()),
         ("RAYON_NUM_THREADS", os.environ.get("RAYON_NUM_THREADS", "unset")),
         ("load average", load_average()),
         (
@@ -928,6 +936,31 @@ def environment(settings: Settings) -> list[tuple[str, str]]:
             f"{MAX_ITERS:,}; planarcal seed = trial number",
         ),
     ]
+
+
+def parallel_throughput() -> str:
+    """How much more work all cores do than one, measured (hashlib releases the GIL).
+
+    On a shared or throttled machine the cores counted may not all be there; this says how
+    much the batch API and OpenCV's USAC_PARALLEL can gain from threads at all.
+    """
+    n_threads = os.cpu_count() or 1
+    if n_threads < 2:
+        return "1 core"
+    data = bytes(16 << 20)
+
+    def work(_: int) -> None:
+        for _round in range(4):
+            hashlib.sha256(data).digest()
+
+    start = time.perf_counter()
+    work(0)
+    one = time.perf_counter() - start
+    with concurrent.futures.ThreadPoolExecutor(n_threads) as pool:
+        start = time.perf_counter()
+        list(pool.map(work, range(n_threads)))
+        many = time.perf_counter() - start
+    return f"{n_threads} threads do {n_threads * one / many:.2f}x the work of one (hashlib test)"
 
 
 def cpu_model() -> str:
@@ -948,12 +981,9 @@ def load_average() -> str:
         return "unknown"
 
 
-def render_table(
-    headers: Sequence[str],
-    right_aligned: Sequence[bool],
-    rows: Sequence[Sequence[str]],
-    markdown: bool,
-) -> list[str]:
+def render_table(table: Table, markdown: bool) -> list[str]:
+    """The table's lines: Markdown, or plain text with aligned columns."""
+    headers, right_aligned, rows = table.headers, table.right_aligned, table.rows
     if markdown:
         lines = ["| " + " | ".join(headers) + " |"]
         lines.append("|" + "|".join("---:" if right else "---" for right in right_aligned) + "|")
@@ -985,8 +1015,8 @@ def print_report(
         print()
         print(f"### {section.title}" if markdown else section.title)
         print()
-        for headers, right_aligned, rows in section.tables:
-            print("\n".join(render_table(headers, right_aligned, rows, markdown)))
+        for table in section.tables:
+            print("\n".join(render_table(table, markdown)))
             print()
         for note in section.notes:
             print(f"- {note}" if markdown else f"  {note}")
@@ -995,10 +1025,11 @@ def print_report(
     print()
     print("### Targets" if markdown else "Targets")
     print()
-    rows = [(t.description, t.measured, "PASS" if t.passed else "FAIL") for t in targets]
-    print(
-        "\n".join(render_table(("target", "measured", "PASS/FAIL"), (False,) * 3, rows, markdown))
-    )
+    target_rows: list[tuple[str, ...]] = [
+        (t.description, t.measured, "PASS" if t.passed else "FAIL") for t in targets
+    ]
+    target_table = Table(("target", "measured", "PASS/FAIL"), (False,) * 3, target_rows)
+    print("\n".join(render_table(target_table, markdown)))
     n_passed = sum(t.passed for t in targets)
     print()
     print(
