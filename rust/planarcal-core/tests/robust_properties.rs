@@ -44,8 +44,8 @@ enum Outliers {
     /// A few blobs of wrong matches (e.g. repeated texture): sources in one small region
     /// paired at random with destinations in another.
     Clustered,
-    /// A second, different homography for some of them (fewer than the inliers: the larger
-    /// structure is the model), the rest uniform.
+    /// A second, different homography for some of them, seen with the same noise (fewer than
+    /// the inliers: the larger structure is the model), the rest uniform.
     SecondPlane,
 }
 
@@ -90,7 +90,13 @@ fn problem(n: usize, inlier_fraction: f64, kind: Outliers, seed: u64) -> Problem
             // An outlier is inconsistent with the truth: one that lands within a few
             // thresholds of it (where a second plane meets the first, say) is drawn again.
             let mut d = match kind {
-                Outliers::SecondPlane if i < inliers + second => project(&other, &s),
+                Outliers::SecondPlane if i < inliers + second => {
+                    let q = project(&other, &s);
+                    [
+                        q[0] + 0.5 * gaussian(&mut rng),
+                        q[1] + 0.5 * gaussian(&mut rng),
+                    ]
+                }
                 _ => [f64::NAN; 2],
             };
             while !((d[0] - q[0]).hypot(d[1] - q[1]) > 10.0) {
@@ -182,13 +188,16 @@ proptest! {
         let o = RobustOptions { seed, method: Method::Lmeds, threshold: 0.0, ..Default::default() };
         let r = estimate_robust(&p.src, &p.dst, &o).unwrap();
         let (ours, best) = (error_to_truth(&r.h.unwrap(), &p), error_to_truth(&gold(&p), &p));
-        // LMedS's scale gate (about 4.4 sigma) may drop a true inlier from the tail of the
-        // noise, and the fit then differs from the gold one by that point's leverage.
-        let gated = (0..p.src.len()).any(|i| {
-            let q = project(&p.truth, &p.src[i]);
-            p.inlier[i] && !r.inliers[i] && (q[0] - p.dst[i][0]).hypot(q[1] - p.dst[i][1]) > 2.0
-        });
-        prop_assert!(ours <= 1.1 * best + 1e-9 || gated, "error {ours} vs gold {best}");
+        // No outlier passes LMedS's scale gate (about 4.4 sigma), but it may drop a true
+        // inlier from the tail of the noise, and the fit then differs from the gold one by
+        // that point's leverage: within 10% of it when it keeps every inlier, within 50% when
+        // it drops a few.
+        let kept_outliers = (0..n).filter(|&i| !p.inlier[i] && r.inliers[i]).count();
+        let dropped = (0..n).filter(|&i| p.inlier[i] && !r.inliers[i]).count();
+        prop_assert_eq!(kept_outliers, 0);
+        prop_assert!(dropped <= 2, "{dropped} inliers dropped");
+        let slack = if dropped == 0 { 1.1 } else { 1.5 };
+        prop_assert!(ours <= slack * best + 1e-9, "error {ours} vs gold {best}");
         prop_assert!(r.threshold > 0.0 && r.threshold.is_finite());
     }
 }
@@ -336,3 +345,4 @@ fn bad_options_are_named() {
     };
     assert!(estimate_robust(&p.src, &p.dst, &o).is_ok());
 }
+

@@ -72,6 +72,17 @@ macro_rules! with_avx2 {
     };
 }
 
+/// A well-mixed hash of a sample's indices (splitmix64 finaliser).
+fn sample_hash(sample: &[u32; 4]) -> u64 {
+    let mut z = sample
+        .iter()
+        .fold(0u64, |acc, &i| acc.rotate_left(17) ^ u64::from(i))
+        .wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 /// Whether (x, y) -> (u, v) is within squared distance t2 of h's prediction, division-free.
 #[inline(always)]
 fn agrees(h: &[f64; 9], x: f64, y: f64, u: f64, v: f64, t2: f64) -> bool {
@@ -189,11 +200,15 @@ impl Data {
         let (log_in, log_out, log_a) = (test.log_in, test.log_out, test.log_a);
         let pace = best as f64 / self.n as f64;
         let at = sample.map(|i| self.position[i as usize] as usize);
-        let mut log_lambda = 0.0;
-        let mut inliers = 0;
-        let mut k = 0;
-        while k < self.n {
-            let end = (k + CHUNK).min(self.n);
+        // Each hypothesis starts at its own chunk, picked from its sample (deterministic),
+        // and wraps around: SPRT's error rates assume that different hypotheses see
+        // independent points first. With one fixed start, a first chunk that happens to hold
+        // no inliers would reject every good model alike.
+        let chunks = self.n.div_ceil(CHUNK);
+        let first = sample_hash(sample) as usize % chunks;
+        let (mut log_lambda, mut inliers, mut tested) = (0.0, 0usize, 0usize);
+        for c in (first..chunks).chain(0..first) {
+            let (k, end) = (c * CHUNK, ((c + 1) * CHUNK).min(self.n));
             let mut agree = 0usize;
             if end - k == CHUNK {
                 let (blocks, _) = self.blocks::<CHUNK>(k, end);
@@ -212,17 +227,15 @@ impl Data {
             let own = at.iter().filter(|&&p| p >= k && p < end).count();
             let agree = agree.saturating_sub(own);
             inliers += agree;
+            tested += end - k - own;
             log_lambda += agree as f64 * log_in + (end - k - own - agree) as f64 * log_out;
-            k = end;
-            if log_lambda > log_a && k < self.n {
-                return Verdict::Rejected {
-                    tested: k - at.iter().filter(|&&p| p < k).count(),
-                    inliers,
-                };
+            let more = tested + 4 < self.n;
+            if log_lambda > log_a && more {
+                return Verdict::Rejected { tested, inliers };
             }
             // Behind the best model's pace by 4 standard deviations and 5%.
-            let expected = pace * k as f64;
-            if expected - inliers as f64 > 4.0 * expected.sqrt() + 0.05 * expected && k < self.n {
+            let expected = pace * tested as f64;
+            if expected - inliers as f64 > 4.0 * expected.sqrt() + 0.05 * expected && more {
                 return Verdict::Outscored;
             }
         }

@@ -51,7 +51,8 @@ pub struct RobustOptions {
     pub threshold: f64,
     /// Probability that the search has drawn an all-inlier sample when it stops.
     pub confidence: f64,
-    /// Most samples drawn.
+    /// Most iterations: minimal samples that pass the sample checks, as OpenCV counts them
+    /// (at most MAX_DRAWS_PER_ITERATION times as many are drawn).
     pub max_iters: usize,
     pub seed: u64,
     /// Quality of each correspondence (higher is better): PROSAC samples the best first.
@@ -103,7 +104,7 @@ pub struct RobustResult {
     /// Inlier mask under the final H (all false without one).
     pub inliers: Vec<bool>,
     pub n_inliers: usize,
-    /// Samples drawn.
+    /// Iterations: minimal samples that passed the sample checks.
     pub iterations: usize,
     pub stop: StopReason,
     /// RMS transfer error of the inliers under H (destination units); NaN without H.
@@ -148,6 +149,11 @@ const GUIDE_MIN_POINTS: usize = 500;
 
 /// Most concentration steps after the LMedS search.
 const MAX_CONCENTRATION_STEPS: usize = 5;
+/// Draws per iteration at most: samples that fail the checks do not count as iterations (as
+/// in OpenCV), but a degenerate problem, whose every sample fails, must still end.
+const MAX_DRAWS_PER_ITERATION: usize = 10;
+/// Fewest inliers of a model worth local optimisation.
+const MIN_LO_SUPPORT: usize = 8;
 /// Refits of the final model to its inlier set.
 const FINAL_ROUNDS: usize = 2;
 
@@ -308,35 +314,50 @@ fn draw(progressive: &mut Option<Progressive>, rng: &mut Pcg32, n: u32) -> [u32;
     s
 }
 
+/// What became of a sample.
+enum Scored {
+    /// It fails the sample checks: no homography (does not count as an iteration).
+    Invalid,
+    /// All four are inliers of the best model: it would give that model again.
+    Known,
+    Tested([f64; 9], Verdict),
+}
+
 fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let n = data.n as u32;
+    // Caller-given scores: the stopping rule may use no less than the better half of them,
+    // since nothing says how well they rank (a ranking that puts a wrong structure first
+    // would otherwise stop the search on it).
     let mut progressive = o
         .scores
         .as_deref()
-        .map(|s| Progressive::new(ranking(s), o.max_iters, 0));
+        .map(|s| Progressive::new(ranking(s), o.max_iters, data.n / 2));
     // Start by letting through any model with more support than chance: a model from three
     // inliers and one outlier agrees with only a few points, and local optimisation grows it
     // into the true model. The test sharpens as soon as a best model exists.
     let mut sprt = Sprt::new(INITIAL_EPSILON, INITIAL_DELTA);
     let mut best: Option<Model> = None;
-    let mut k_max = o.max_iters as f64;
-    let mut iterations = 0usize;
+    // Samples drawn (what the stopping rules count: an all-inlier draw is never invalid)
+    // and samples that passed the checks (what max_iters bounds, as OpenCV counts them).
+    let (mut draws, mut iterations) = (0usize, 0usize);
+    let draw_cap = o.max_iters.saturating_mul(MAX_DRAWS_PER_ITERATION);
+    let mut k_max = f64::INFINITY;
     let (mut rejected_tested, mut rejected_agreeing) = (0usize, 0usize);
     let mut lo_runs = 0;
     let mut guide_checked = progressive.is_some() || data.n < GUIDE_MIN_POINTS;
     let mut samples = Vec::with_capacity(BATCH);
     let mut is_inlier = vec![false; data.n];
     let mut stale = false;
-    let left = |iterations: usize, k_max: f64, p: &Option<Progressive>| {
-        let uniform = k_max - iterations as f64;
+    let left = |draws: usize, k_max: f64, p: &Option<Progressive>| {
+        let uniform = k_max - draws as f64;
         let progressive = p.as_ref().map_or(f64::INFINITY, Progressive::left);
         uniform.min(progressive)
     };
-    while left(iterations, k_max, &progressive) > 0.0 {
+    while left(draws, k_max, &progressive) > 0.0 && iterations < o.max_iters && draws < draw_cap {
         // Outliers dominate after the probe: rank the correspondences by neighbourhood
         // consistency and sample the most consistent first (PROSAC), which finds an
         // all-inlier sample in tens of draws where uniform sampling needs thousands.
-        if !guide_checked && iterations >= PROBE {
+        if !guide_checked && draws >= PROBE {
             guide_checked = true;
             if best.is_none_or(|b| (b.inliers as f64) < GUIDE_BELOW * data.n as f64) {
                 let scores = guided::neighbourhood_scores(&data.src, &data.dst);
@@ -363,28 +384,42 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         }
         // Batches grow from FIRST_BATCH to BATCH in each phase, so that the stopping rule and
         // SPRT are sharpened early.
-        let in_phase = progressive.as_ref().map_or(iterations, |p| p.drawn);
-        let size = in_phase.clamp(FIRST_BATCH, BATCH);
-        let batch = (size as f64)
-            .min(left(iterations, k_max, &progressive).ceil())
-            .max(1.0) as usize;
+        let in_phase = progressive.as_ref().map_or(draws, |p| p.drawn);
+        let batch = in_phase
+            .clamp(FIRST_BATCH, BATCH)
+            .min(o.max_iters - iterations)
+            .min(left(draws, k_max, &progressive).ceil().max(1.0) as usize);
         samples.clear();
         for _ in 0..batch {
             samples.push(draw(&mut progressive, rng, n));
         }
-        iterations += batch;
+        draws += batch;
         let (test, pace) = (sprt, best.map_or(0, |b| b.inliers));
         let known = &is_inlier;
-        let verdicts = score_batch(data, &samples, o.parallel, |s| {
+        let scored = score_batch(data, &samples, o.parallel, |s| {
             // Four inliers of the best model give (nearly) the best model again, which has
-            // been optimised already: such a sample is drawn, and counts, but needs no
-            // scoring. With a clean ranking most samples are like this.
+            // been optimised already: such a sample counts, but needs no scoring. With a
+            // clean ranking most samples are like this.
             if s.iter().all(|&i| known[i as usize]) {
-                return None;
+                return Scored::Known;
             }
-            hypothesis(data, s).map(|h| (h, data.sprt(&h, s, &test, pace)))
+            match hypothesis(data, s) {
+                Some(h) => Scored::Tested(h, data.sprt(&h, s, &test, pace)),
+                None => Scored::Invalid,
+            }
         });
-        for (h, verdict) in verdicts.into_iter().flatten() {
+        for result in scored {
+            let (h, verdict) = match result {
+                Scored::Invalid => continue,
+                Scored::Known => {
+                    iterations += 1;
+                    continue;
+                }
+                Scored::Tested(h, verdict) => {
+                    iterations += 1;
+                    (h, verdict)
+                }
+            };
             match verdict {
                 Verdict::Outscored => {}
                 Verdict::Rejected { tested, inliers } => {
@@ -406,7 +441,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                         continue;
                     }
                     let mut model = Model { h, inliers, cost };
-                    if inliers >= 8 {
+                    if inliers >= MIN_LO_SUPPORT {
                         lo_runs += 1;
                         if let Some((h, inliers, cost)) =
                             local_opt::optimize(data, &h, inliers, cost)
@@ -420,7 +455,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                     best = Some(model);
                     let epsilon = model.inliers as f64 / data.n as f64;
                     sprt = Sprt::new(epsilon, sprt.delta);
-                    k_max = (o.max_iters as f64).min(sprt.iterations_needed(o.confidence, epsilon));
+                    k_max = sprt.iterations_needed(o.confidence, epsilon);
                     stale = true;
                 }
             }
@@ -432,20 +467,14 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                 sprt = Sprt::new(sprt.epsilon, delta);
                 if let Some(b) = best {
                     let epsilon = b.inliers as f64 / data.n as f64;
-                    k_max = (o.max_iters as f64).min(sprt.iterations_needed(o.confidence, epsilon));
+                    k_max = sprt.iterations_needed(o.confidence, epsilon);
                     stale = progressive.is_some();
                 }
             }
         }
-        if iterations >= o.max_iters {
-            break;
-        }
     }
-    let certified = progressive.as_ref().is_some_and(Progressive::done)
-        || best.is_some_and(|b| {
-            sprt.iterations_needed(o.confidence, b.inliers as f64 / data.n as f64)
-                <= iterations as f64
-        });
+    let certified = best.is_some()
+        && (progressive.as_ref().is_some_and(Progressive::done) || k_max <= draws as f64);
     let stop = if certified {
         StopReason::Converged
     } else {
