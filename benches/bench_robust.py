@@ -582,8 +582,8 @@ def synthetic_notes(
         f"{format_px(best.median_error_px)} px; planarcal's {format_px(ours.median_error_px)} px",
         "OpenCV flags failing (no H, or error > "
         f"{SYNTHETIC_FAILURE_PX:g} px): " + (", ".join(failing) if failing else "none"),
-        f"planarcal samples drawn: median {statistics.median(iterations):g}, max "
-        f"{max(iterations)}; stop reasons: "
+        "planarcal iterations (samples passing the checks): median "
+        f"{statistics.median(iterations):g}, max {max(iterations)}; stop reasons: "
         + ", ".join(f"{reason} {count}" for reason, count in stop_reasons.most_common()),
     ]
     notes.append(
