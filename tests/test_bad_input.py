@@ -1070,12 +1070,15 @@ ROBUST = OPENCV_ROBUST_METHODS
 
 
 @pytest.mark.parametrize("name", ROBUST)
-def test_find_homography_robust_methods_not_implemented(name: str) -> None:
+def test_find_homography_robust_methods_keep_opencvs_conventions(name: str) -> None:
     method = getattr(pc, name)
     assert method == getattr(cv2, name)
-    with pytest.raises(NotImplementedError) as info:
-        pc.findHomography(SRC, DST, method)
-    assert f"{name} ({method})" in message(info)
+    h, mask = pc.findHomography(SRC, DST, method)
+    assert h is not None and h.shape == (3, 3) and h.dtype == np.float64 and h[2, 2] == 1.0
+    assert mask.shape == (N, 1) and mask.dtype == np.uint8 and (mask == 1).all()
+    # Collinear points: OpenCV's failure value, None, and an all-zero mask.
+    h, mask = pc.findHomography(LINE, SQUARE8, method)
+    assert h is None and mask.shape == (8, 1) and not mask.any()
 
 
 def test_find_homography_fills_the_given_mask() -> None:

@@ -345,4 +345,3 @@ fn bad_options_are_named() {
     };
     assert!(estimate_robust(&p.src, &p.dst, &o).is_ok());
 }
-

@@ -12,6 +12,7 @@
 //! batches, in parallel where it pays, with every decision taken in sample order between
 //! batches: the same inputs and seed give bit-identical results on any number of threads.
 
+mod chance;
 mod data;
 mod guided;
 mod local_opt;
@@ -29,6 +30,7 @@ use crate::estimate::{estimate, refine_homography, Solver};
 use crate::threads;
 use crate::Point;
 
+use chance::minimum_support;
 use data::{Data, Verdict};
 use progressive::Progressive;
 use sampler::distinct_sample;
@@ -152,8 +154,8 @@ const MAX_CONCENTRATION_STEPS: usize = 5;
 /// Draws per iteration at most: samples that fail the checks do not count as iterations (as
 /// in OpenCV), but a degenerate problem, whose every sample fails, must still end.
 const MAX_DRAWS_PER_ITERATION: usize = 10;
-/// Fewest inliers of a model worth local optimisation.
-const MIN_LO_SUPPORT: usize = 8;
+/// Fewest inliers of a model worth local optimisation (as many as a refit takes).
+const MIN_LO_SUPPORT: usize = local_opt::MIN_POINTS;
 /// Refits of the final model to its inlier set.
 const FINAL_ROUNDS: usize = 2;
 
@@ -485,7 +487,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         iterations,
         stop,
         t2: data.t2,
-        delta: geometric_delta(data),
+        delta: geometric_delta(data, data.t2),
         lo_runs,
     }
 }
@@ -560,7 +562,7 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         iterations,
         stop: StopReason::Converged,
         t2,
-        delta: geometric_delta(data),
+        delta: geometric_delta(data, t2),
         lo_runs,
     }
 }
@@ -574,30 +576,11 @@ fn median_residual2(data: &Data, h: &[f64; 9]) -> f64 {
 }
 
 /// The chance that a point falls within the threshold of a wrong model's prediction: the
-/// threshold disc over the area the destination points spread over (normalised units).
-fn geometric_delta(data: &Data) -> f64 {
-    (std::f64::consts::PI * data.t2 / data.dst_area).clamp(1e-9, 0.5)
-}
-
-/// The smallest support a model needs before it counts as found: the least i for which a
-/// wrong model (Poisson with rate (n - 4) delta beyond its 4 sample points) reaches i with
-/// probability below NON_RANDOMNESS / hypotheses tested.
-fn minimum_support(n: usize, delta: f64, hypotheses: usize) -> usize {
-    if n <= 4 {
-        return 4;
-    }
-    let lambda = (n - 4) as f64 * delta;
-    let limit = NON_RANDOMNESS / hypotheses.max(1) as f64;
-    let (mut term, mut below) = ((-lambda).exp(), 0.0);
-    for j in 0..=(n - 4) {
-        // P(X >= j) = 1 - P(X < j)
-        if 1.0 - below < limit {
-            return 4 + j.max(1);
-        }
-        below += term;
-        term *= lambda / (j + 1) as f64;
-    }
-    n + 1
+/// threshold disc over the area the destination points spread over (normalised units). Near
+/// 1, any model agrees with nearly every point, and no support is beyond chance (LMedS's
+/// scale read from pure outliers comes out so).
+fn geometric_delta(data: &Data, t2: f64) -> f64 {
+    (std::f64::consts::PI * t2 / data.dst_area).clamp(1e-9, 1.0)
 }
 
 /// Squared transfer errors under an oriented H (infinite behind the horizon).
@@ -625,7 +608,11 @@ fn finish(data: &Data, src: &[Point], dst: &[Point], search: Search) -> RobustRe
     let Some(best) = search.best else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     };
-    let support = minimum_support(n, search.delta, search.iterations);
+    let support = minimum_support(
+        n,
+        search.delta,
+        NON_RANDOMNESS / search.iterations.max(1) as f64,
+    );
     if best.inliers < support {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     }

@@ -14,6 +14,7 @@
 //! consistent structure is. And once a model has chosen U_n, sampling widens to it at once
 //! rather than at PROSAC's pace of one point per sample.
 
+use super::chance::minimum_support;
 use super::sampler::{Pcg32, Prosac};
 use super::sprt::Sprt;
 
@@ -77,7 +78,7 @@ impl Progressive {
         let overall = is_inlier.iter().filter(|&&b| b).count();
         let (mut needed, mut prefix) = (f64::INFINITY, total);
         // Only a model whose support over all points is beyond chance may stop the search.
-        if overall < minimum_support(total, delta).max(MIN_SUPPORT) {
+        if overall < minimum_support(total, delta, NON_RANDOMNESS).max(MIN_SUPPORT) {
             self.needed = needed;
             self.prefix = prefix as u32;
             return;
@@ -90,7 +91,7 @@ impl Progressive {
                 support += usize::from(is_inlier[self.rank[counted] as usize]);
                 counted += 1;
             }
-            if support >= minimum_support(size, delta) {
+            if support >= minimum_support(size, delta, NON_RANDOMNESS) {
                 let mut p = survive;
                 for j in 0..4 {
                     p *= support.saturating_sub(j) as f64 / (size - j) as f64;
@@ -116,25 +117,6 @@ impl Progressive {
         self.prefix = prefix as u32;
         self.sampler.widen_to(self.prefix);
     }
-}
-
-/// The least support i of a model in a prefix of n points for which a wrong model (its 4
-/// sample points plus, per other point, agreement with chance `delta`: binomial, here by
-/// its Poisson limit) reaches i with probability below NON_RANDOMNESS.
-fn minimum_support(n: usize, delta: f64) -> usize {
-    if n <= 4 {
-        return n + 1;
-    }
-    let lambda = (n - 4) as f64 * delta.max(1e-12);
-    let (mut term, mut below) = ((-lambda).exp(), 0.0);
-    for j in 0..=(n - 4) {
-        if 1.0 - below < NON_RANDOMNESS {
-            return 4 + j.max(1);
-        }
-        below += term;
-        term *= lambda / (j + 1) as f64;
-    }
-    n + 1
 }
 
 #[cfg(test)]
@@ -175,12 +157,5 @@ mod tests {
         let before = p.left();
         p.sample(&mut rng, &mut s);
         assert_eq!(p.left(), before - 1.0);
-    }
-
-    #[test]
-    fn chance_support_does_not_qualify() {
-        assert!(minimum_support(100, 0.01) >= 6);
-        assert!(minimum_support(1000, 0.01) > minimum_support(100, 0.01));
-        assert_eq!(minimum_support(4, 0.01), 5);
     }
 }
