@@ -1,12 +1,15 @@
 //! Robust estimation: homographies from correspondences with outliers.
 //!
-//! The MSAC search follows USAC (Raguram et al. 2013): minimal samples drawn uniformly (or by
-//! PROSAC when quality scores rank the correspondences), cheap sample checks, the 4-point
-//! solve, SPRT early rejection of bad hypotheses, the truncated-quadratic (MSAC) cost,
-//! local optimisation of every new best model, and termination adapted to the best model's
-//! inlier ratio. The best model is then refitted to its inliers (normalised DLT, then
+//! The MSAC search follows USAC (Raguram et al. 2013): minimal samples drawn uniformly, or
+//! by PROSAC over a ranking (the caller's quality scores, or, when outliers dominate, the
+//! correspondences' neighbourhood consistency: guided.rs), cheap sample checks, the 4-point
+//! solve, SPRT early rejection of bad hypotheses, the truncated-quadratic (MSAC) cost, local
+//! optimisation of every model that beats the best or has more support than it, and
+//! termination from the confidence (RANSAC's rule, and PROSAC's where it samples by rank:
+//! progressive.rs). The best model is then refitted to its inliers (normalised DLT, then
 //! Levenberg-Marquardt) and the inlier mask recomputed from the final H, so the two agree.
-//! LMedS minimises the median squared residual instead, and needs no threshold.
+//! A model needs more support than chance gives (chance.rs), or there is no result. LMedS
+//! minimises the median squared residual instead, and needs no threshold.
 //!
 //! Deterministic: samples are drawn serially from a seeded PCG32 stream and scored in fixed
 //! batches, in parallel where it pays, with every decision taken in sample order between
