@@ -22,7 +22,7 @@ const GROW: [f64; 7] = [64.0, 32.0, 16.0, 8.0, 4.0, 2.0, 1.0];
 /// rather than polished: a minimal fit through a few, noisy inliers can miss the rest of them
 /// by several thresholds (measured: 8 inliers among 40, a fit through 4 of them caught 6).
 const WEAK_SUPPORT: f64 = 0.02;
-const WEAK_COUNT: usize = 30;
+pub const WEAK_COUNT: usize = 30;
 /// Refits at the final threshold until the inlier set settles.
 const MAX_SETTLE: usize = 1;
 
@@ -59,7 +59,9 @@ pub fn to_array(h: &Matrix3<f64>) -> [f64; 9] {
     ]
 }
 
-/// The locally optimised model and its (inlier count, MSAC cost), if it beats `cost`.
+/// The locally optimised model and its (inlier count, MSAC cost), if it beats `cost`. A
+/// weak model is grown from a wide threshold down, and polished as well (growing a model of
+/// a few inliers among few points lets outliers into the wide refits); the better wins.
 pub fn optimize(
     data: &Data,
     h: &[f64; 9],
@@ -67,7 +69,26 @@ pub fn optimize(
     cost: f64,
 ) -> Option<([f64; 9], usize, f64)> {
     let weak = (inliers as f64) < WEAK_SUPPORT * data.n as f64 || inliers < WEAK_COUNT;
-    let schedule: &[f64] = if weak { &GROW } else { &POLISH };
+    let polished = refits(data, h, cost, &POLISH);
+    if !weak {
+        return polished;
+    }
+    let grown = refits(data, h, cost, &GROW);
+    match (grown, polished) {
+        (Some(g), Some(p)) => Some(if p.2 < g.2 { p } else { g }),
+        (g, p) => g.or(p),
+    }
+}
+
+/// Least-squares refits at the thresholds of `schedule` (multiples of the inlier threshold),
+/// each to the inliers of the one before, then at the threshold until the set settles; the
+/// best by MSAC cost if it beats `cost`.
+fn refits(
+    data: &Data,
+    h: &[f64; 9],
+    cost: f64,
+    schedule: &[f64],
+) -> Option<([f64; 9], usize, f64)> {
     let mut best: Option<([f64; 9], usize, f64)> = None;
     let mut best_cost = cost;
     let mut current = *h;

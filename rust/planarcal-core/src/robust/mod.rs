@@ -38,7 +38,7 @@ use data::{Data, Verdict};
 use progressive::Progressive;
 use sampler::distinct_sample;
 pub use sampler::Pcg32;
-use sprt::{plain_iterations_needed, Sprt};
+use sprt::{samples_needed, Sprt};
 
 /// How the robust search scores a hypothesis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -159,8 +159,9 @@ const MAX_CONCENTRATION_STEPS: usize = 5;
 const MAX_DRAWS_PER_ITERATION: usize = 10;
 /// Fewest inliers of a model worth local optimisation (as many as a refit takes).
 const MIN_LO_SUPPORT: usize = local_opt::MIN_POINTS;
-/// Refits of the final model to its inlier set.
-const FINAL_ROUNDS: usize = 2;
+/// Refits of the final model to its inlier set at most (it settles in one or two; a point
+/// that sits on the threshold could make it alternate).
+const FINAL_ROUNDS: usize = 8;
 
 /// SPRT's starting inlier ratio and agreement rate of wrong models, before any model is found.
 const INITIAL_EPSILON: f64 = 0.01;
@@ -440,8 +441,14 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                     let (inliers, cost) = data.msac(&h);
                     // A model with more support but a higher cost is optimised too: a minimal
                     // fit of the truth scatters its inliers across the threshold, and can
-                    // cost more than a tight rival structure until it is refitted.
-                    let promising = best.is_none_or(|b| cost < b.cost || inliers > b.inliers);
+                    // cost more than a tight rival structure until it is refitted. So is one
+                    // level with a weakly supported best: with few inliers, a minimal fit
+                    // misses some of them, and which it misses decides what a refit reaches.
+                    let promising = best.is_none_or(|b| {
+                        cost < b.cost
+                            || inliers > b.inliers
+                            || (b.inliers < local_opt::WEAK_COUNT && inliers + 1 >= b.inliers)
+                    });
                     if !promising {
                         continue;
                     }
@@ -460,7 +467,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                     best = Some(model);
                     let epsilon = model.inliers as f64 / data.n as f64;
                     sprt = Sprt::new(epsilon, sprt.delta);
-                    k_max = sprt.iterations_needed(o.confidence, epsilon);
+                    k_max = sprt.iterations_needed(o.confidence, model.inliers, data.n);
                     stale = true;
                 }
             }
@@ -471,8 +478,7 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
             if (delta - sprt.delta).abs() > 0.1 * sprt.delta {
                 sprt = Sprt::new(sprt.epsilon, delta);
                 if let Some(b) = best {
-                    let epsilon = b.inliers as f64 / data.n as f64;
-                    k_max = sprt.iterations_needed(o.confidence, epsilon);
+                    k_max = sprt.iterations_needed(o.confidence, b.inliers, data.n);
                     stale = progressive.is_some();
                 }
             }
@@ -498,7 +504,8 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
 fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let n = data.n as u32;
     // LMedS assumes at most half the points are outliers.
-    let k = (o.max_iters as f64).min(plain_iterations_needed(o.confidence, 0.5)) as usize;
+    let half = sprt::all_inliers(data.n.div_ceil(2), data.n);
+    let k = (o.max_iters as f64).min(samples_needed(o.confidence, half)) as usize;
     let mut best: Option<Model> = None;
     let mut iterations = 0;
     let mut samples = Vec::with_capacity(BATCH);
@@ -603,8 +610,8 @@ fn squared_errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Vec<f64> {
 }
 
 /// The final model: fitted to the search's inliers in the caller's units (normalised DLT,
-/// then Levenberg-Marquardt), then refined once more if that changed the inlier set. The
-/// mask is always the final H's.
+/// then Levenberg-Marquardt), then refined again while that changes the inlier set. The mask
+/// is always the final H's.
 fn finish(data: &Data, src: &[Point], dst: &[Point], search: Search) -> RobustResult {
     let n = data.n;
     let threshold = search.t2.sqrt() / data.dst_norm.scale;

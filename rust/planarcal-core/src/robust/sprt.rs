@@ -45,24 +45,26 @@ impl Sprt {
     }
 
     /// Samples needed for `confidence` that an all-inlier sample was drawn and survived SPRT,
-    /// given the inlier ratio epsilon (a good model survives with probability 1 - 1/A).
-    pub fn iterations_needed(&self, confidence: f64, inlier_ratio: f64) -> f64 {
-        let p_good = inlier_ratio.powi(4) * (1.0 - (-self.log_a).exp());
-        if !(p_good > 0.0) {
-            return f64::INFINITY;
-        }
-        if p_good >= 1.0 {
-            return 1.0;
-        }
-        ((1.0 - confidence).ln() / (1.0 - p_good).ln())
-            .ceil()
-            .max(1.0)
+    /// given `inliers` of `n` points (a good model survives with probability 1 - 1/A).
+    pub fn iterations_needed(&self, confidence: f64, inliers: usize, n: usize) -> f64 {
+        samples_needed(
+            confidence,
+            all_inliers(inliers, n) * (1.0 - (-self.log_a).exp()),
+        )
     }
 }
 
-/// Samples needed for `confidence`, without SPRT.
-pub fn plain_iterations_needed(confidence: f64, inlier_ratio: f64) -> f64 {
-    let p = inlier_ratio.powi(4);
+/// The chance that a sample of 4 distinct points out of n are all among the inliers (drawn
+/// without replacement: at 7 inliers of 40 it is 2.5 times smaller than (7/40)^4, and the
+/// search would stop that much too early).
+pub fn all_inliers(inliers: usize, n: usize) -> f64 {
+    (0..4)
+        .map(|j| inliers.saturating_sub(j) as f64 / n.saturating_sub(j).max(1) as f64)
+        .product()
+}
+
+/// Samples needed for `confidence` that one with probability `p` was drawn.
+pub fn samples_needed(confidence: f64, p: f64) -> f64 {
     if !(p > 0.0) {
         return f64::INFINITY;
     }
@@ -88,11 +90,14 @@ mod tests {
 
     #[test]
     fn iterations_match_the_classic_formula() {
-        // 50% inliers, 99% confidence: 72 samples without SPRT.
-        assert_eq!(plain_iterations_needed(0.99, 0.5), 72.0);
+        // 50% inliers, 99% confidence: 72 samples without SPRT (many points: the classic
+        // formula); a few more with it; many more with few points.
+        assert_eq!(samples_needed(0.99, all_inliers(500_000, 1_000_000)), 72.0);
         let s = Sprt::new(0.5, 0.01);
-        let k = s.iterations_needed(0.99, 0.5);
+        let k = s.iterations_needed(0.99, 500_000, 1_000_000);
         assert!((72.0..80.0).contains(&k), "{k}");
-        assert_eq!(plain_iterations_needed(0.99, 0.0), f64::INFINITY);
+        assert!(s.iterations_needed(0.99, 20, 40) > 1.15 * k);
+        assert_eq!(samples_needed(0.99, all_inliers(3, 40)), f64::INFINITY);
+        assert_eq!(all_inliers(4, 4), 1.0);
     }
 }
