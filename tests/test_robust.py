@@ -107,7 +107,7 @@ def mask_agrees_with_h(r: planarcal.RobustResult, p: Outlying) -> None:
 kinds = st.sampled_from(["uniform", "clustered", "second_plane"])
 
 
-@given(seeds, st.integers(50, 600), st.floats(0.2, 0.9), kinds)
+@given(seeds, st.integers(40, 600), st.floats(0.2, 0.9), kinds)
 @settings(max_examples=examples(120))
 def test_outliers_do_not_capture_the_model(
     seed: int, n: int, fraction: float, kind: OutlierKind
@@ -123,16 +123,12 @@ def test_outliers_do_not_capture_the_model(
     assert not (~p.inlier & r.inliers).any()
 
 
-@given(
-    seeds, st.integers(1000, 2000), st.floats(0.1, 0.15), st.sampled_from(["uniform", "clustered"])
-)
+@given(seeds, st.integers(1000, 2000), st.floats(0.1, 0.15), kinds)
 @settings(max_examples=examples(12))
 def test_many_points_with_ten_percent_inliers(
     seed: int, n: int, fraction: float, kind: OutlierKind
 ) -> None:
-    """At 10% inliers among 1,000+ points. (A second plane of 70% of the true one's size,
-    with the rest uniform, captures the model in about 3% of such problems: a known limit,
-    stated in the README.)"""
+    """At least 10% inliers among 1,000+ points: the same."""
     p = outlying(seed, n, fraction, kind)
     r = planarcal.estimate_homography_robust(p.src, p.dst, THRESHOLD, seed=seed)
     assert p.error(r.H) <= 1.1 * p.error(p.gold()) + 1e-9

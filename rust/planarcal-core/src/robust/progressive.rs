@@ -11,8 +11,9 @@
 //! second plane of 70% of the inliers' size, small prefixes stopped the search on the wrong
 //! plane). So U_n has a floor: at least twice the best model's support, and, for a ranking by
 //! neighbourhood consistency, every point with any consistency at all, where every locally
-//! consistent structure is. And once a model has chosen U_n, sampling widens to it at once
-//! rather than at PROSAC's pace of one point per sample.
+//! consistent structure is. And once a model has chosen U_n, sampling draws from U_n alone
+//! (widening to it at once, rather than at PROSAC's pace of one point per sample) until the
+//! rule is met; only those samples count.
 
 use super::chance::minimum_support;
 use super::sampler::{Pcg32, Prosac};
@@ -31,10 +32,13 @@ pub struct Progressive {
     sampler: Prosac,
     /// Samples drawn since progressive sampling began.
     pub drawn: usize,
-    /// Samples the stopping rule asks for (infinite until a model qualifies), and the prefix
-    /// sampling must have reached first.
+    /// Samples the stopping rule asks for (infinite until a model qualifies) from the prefix
+    /// it chose, and when sampling began to draw from that prefix alone.
     pub needed: f64,
     prefix: u32,
+    since: usize,
+    /// Samples progressive sampling may draw in all.
+    budget: usize,
     floor: usize,
 }
 
@@ -49,6 +53,8 @@ impl Progressive {
             drawn: 0,
             needed: f64::INFINITY,
             prefix: n,
+            since: 0,
+            budget: samples,
             floor,
         }
     }
@@ -66,7 +72,7 @@ impl Progressive {
 
     /// Samples still to draw before the rule is met.
     pub fn left(&self) -> f64 {
-        self.needed - self.sampler.drawn_within(self.prefix) as f64
+        self.needed - (self.drawn - self.since) as f64
     }
 
     /// Updates the stopping rule for a new best model, given which points are its inliers
@@ -113,9 +119,20 @@ impl Progressive {
             }
             size = ((size as f64 * PREFIX_GROWTH).ceil() as usize).clamp(size + 1, total);
         }
+        // Sampling draws from the chosen prefix alone until the rule is met (PROSAC's growth
+        // steps would put a point from beyond it in every sample); the count starts when the
+        // prefix changes.
+        if prefix as u32 != self.prefix || !self.needed.is_finite() {
+            self.since = self.drawn;
+        }
         self.needed = needed;
         self.prefix = prefix as u32;
-        self.sampler.widen_to(self.prefix);
+        // A rule the sample budget cannot meet is no reason to narrow the search: sampling
+        // then grows on towards all the points.
+        let hold = needed - (self.drawn - self.since) as f64;
+        if hold <= self.budget.saturating_sub(self.drawn) as f64 {
+            self.sampler.focus(self.prefix, hold.max(0.0) as u64);
+        }
     }
 }
 

@@ -91,8 +91,6 @@ pub struct Prosac {
     samples: u64,
     /// Samples after which PROSAC is plain uniform sampling.
     growth_max: u64,
-    /// reached[k]: samples drawn before the subset held k points (for k <= n).
-    reached: Vec<u64>,
 }
 
 impl Prosac {
@@ -112,29 +110,21 @@ impl Prosac {
             t_n_prime: 1,
             samples: 0,
             growth_max,
-            reached: vec![0; Self::M as usize + 1],
         }
     }
 
-    /// Samples drawn from a subset of at least the `size` best (each of them uniform over
-    /// some subset that contains those `size`).
-    pub fn drawn_within(&self, size: u32) -> u64 {
-        match self.reached.get(size as usize) {
-            Some(&before) => self.samples - before,
-            None => self.samples.saturating_sub(self.growth_max),
+    /// Draws uniformly from the `size` best for the next `hold` samples, then grows on from
+    /// there on PROSAC's schedule.
+    pub fn focus(&mut self, size: u32, hold: u64) {
+        let size = size.clamp(Self::M, self.n_total);
+        // T_n = T_N C(n, m) / C(N, m), as the schedule would have it at n.
+        let mut t_n = self.growth_max as f64;
+        for i in 0..Self::M {
+            t_n *= (f64::from(size) - f64::from(i)) / (f64::from(self.n_total) - f64::from(i));
         }
-    }
-
-    /// Draws from the `size` best from now on (if that is more than now), as though the
-    /// schedule had reached them.
-    pub fn widen_to(&mut self, size: u32) {
-        let size = size.min(self.n_total);
-        while self.n < size {
-            self.t_n *= f64::from(self.n + 1) / f64::from(self.n + 1 - Self::M);
-            self.n += 1;
-            self.reached.push(self.samples);
-        }
-        self.t_n_prime = self.t_n_prime.max(self.samples + 1);
+        self.n = size;
+        self.t_n = t_n;
+        self.t_n_prime = self.samples.saturating_add(hold).saturating_add(1);
     }
 
     /// How many of the best-ranked correspondences samples are drawn from now.
@@ -161,7 +151,6 @@ impl Prosac {
             self.t_n_prime += (next - self.t_n).ceil().max(1.0) as u64;
             self.t_n = next;
             self.n += 1;
-            self.reached.push(self.samples - 1);
             let mut rest = [0u32; 3];
             distinct_sample(rng, self.n - 1, &mut rest);
             out[0] = self.n - 1;
