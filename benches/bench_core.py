@@ -47,6 +47,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from machine import cpu_model, load_average
 from numpy.typing import NDArray
 
 import planarcal as pc
@@ -377,25 +378,6 @@ def environment(settings: Settings) -> list[tuple[str, str]]:
             f"~{settings.sample_ms:g} ms each",
         ),
     ]
-
-
-def load_average() -> str:
-    """The 1/5/15-minute load at the end of the run: other work competing for the cores."""
-    try:
-        return "{:.2f} / {:.2f} / {:.2f} (1 / 5 / 15 min, at the end)".format(*os.getloadavg())
-    except OSError:
-        return "unknown"
-
-
-def cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine() or "unknown"
 
 
 def format_value(value: float, unit: str) -> str:

@@ -82,6 +82,7 @@ from typing import Any, Literal
 
 import cv2
 import numpy as np
+from machine import cpu_model, load_average
 from numpy.typing import NDArray
 
 import planarcal as pc
@@ -961,24 +962,6 @@ def parallel_throughput() -> str:
         list(pool.map(work, range(n_threads)))
         many = time.perf_counter() - start
     return f"{n_threads} threads do {n_threads * one / many:.2f}x the work of one (hashlib test)"
-
-
-def cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine() or "unknown"
-
-
-def load_average() -> str:
-    try:
-        return "{:.2f} / {:.2f} / {:.2f} (1 / 5 / 15 min, at the end)".format(*os.getloadavg())
-    except OSError:
-        return "unknown"
 
 
 def render_table(table: Table, markdown: bool) -> list[str]:
