@@ -29,7 +29,7 @@ RobustMethod = Literal["msac", "lmeds"]
 """``"msac"``: thresholded (truncated-quadratic) scoring; ``"lmeds"``: least median."""
 
 StopReason = Literal["converged", "max_iterations", "no_consensus"]
-"""Why the search stopped: the confidence was reached; ``max_iters`` samples were drawn
+"""Why the search stopped: the confidence was reached; ``max_iters`` iterations were run
 first (the result may still be right, but is not certified); no model had more support than
 chance gives (``H`` is None)."""
 
@@ -49,7 +49,7 @@ class RobustResult:
     """(N,) bool: within ``threshold`` of the final H (all False without one)."""
     n_inliers: int
     iterations: int
-    """Minimal samples drawn."""
+    """Iterations: minimal samples that passed the sample checks (OpenCV's count)."""
     stop_reason: StopReason
     rms_inlier_error: float
     """RMS transfer error of the inliers under H, in destination units (NaN without H)."""
@@ -147,7 +147,8 @@ def estimate_homography_robust(
 
     ``threshold`` is the largest transfer error of an inlier in destination units (pixels
     for an image); ``confidence`` the probability, when the search stops, that it has drawn
-    an all-inlier sample; ``max_iters`` caps the samples drawn. ``scores`` (one number per
+    an all-inlier sample; ``max_iters`` caps the iterations (minimal samples that pass the
+    sample checks, as OpenCV counts them). ``scores`` (one number per
     correspondence, higher is better, e.g. a descriptor match's ratio-test margin) make the
     search sample the best correspondences first (PROSAC). ``method="lmeds"`` minimises the
     median squared residual and ignores ``threshold``.
