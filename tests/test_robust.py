@@ -163,7 +163,10 @@ def test_every_flag_is_at_least_as_accurate_as_opencvs(name: str) -> None:
         if name != "LMEDS":
             np.testing.assert_array_equal(mask[:, 0] == 1, residuals <= THRESHOLD)
         q = Outlying(src, dst, p.truth, inlier)
-        assert q.error(ours) <= 1.02 * q.error(theirs) + 1e-6, (name, seed)
+        # As accurate as OpenCV's, or as the gold-standard fit on the true inliers: another
+        # estimator can land closer to the truth by chance on one problem, not by design.
+        best = min(q.error(theirs), q.error(q.gold()))
+        assert q.error(ours) <= 1.02 * best + 1e-6, (name, seed)
 
 
 def test_the_given_mask_is_filled_in_place() -> None:
