@@ -145,7 +145,7 @@ def test_every_flag_is_at_least_as_accurate_as_opencvs(name: str) -> None:
     assert method == getattr(cv2, name)
     # LMedS breaks down at 50% outliers; the others get 40%.
     fraction = 0.65 if name == "LMEDS" else 0.6
-    for seed in range(5):
+    for seed in range(12):
         p = parity_problem(seed, fraction)
         src, dst, inlier = p.src, p.dst, p.inlier
         if name == "USAC_PROSAC":  # PROSAC's contract: the points come best first
@@ -163,10 +163,11 @@ def test_every_flag_is_at_least_as_accurate_as_opencvs(name: str) -> None:
         if name != "LMEDS":
             np.testing.assert_array_equal(mask[:, 0] == 1, residuals <= THRESHOLD)
         q = Outlying(src, dst, p.truth, inlier)
-        # As accurate as OpenCV's, or as the gold-standard fit on the true inliers: another
-        # estimator can land closer to the truth by chance on one problem, not by design.
-        best = min(q.error(theirs), q.error(q.gold()))
-        assert q.error(ours) <= 1.02 * best + 1e-6, (name, seed)
+        # As accurate as OpenCV's fit, or as the gold-standard fit on the true inliers (the
+        # best an estimator can do by design: on one problem another may land closer to the
+        # truth by chance).
+        error, theirs_error, gold_error = q.error(ours), q.error(theirs), q.error(q.gold())
+        assert error <= 1.02 * max(theirs_error, gold_error) + 1e-6, (name, seed)
 
 
 def test_the_given_mask_is_filled_in_place() -> None:
