@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
@@ -222,6 +223,20 @@ def test_results_do_not_depend_on_the_thread_count() -> None:
         assert done.returncode == 0, done.stderr
         digests.add(done.stdout.strip())
     assert len(digests) == 1
+
+
+def test_calls_from_many_threads_give_what_one_thread_gives() -> None:
+    # The search runs with the GIL released: concurrent calls share nothing.
+    problems = [outlying(s, 2000, 0.2 + 0.1 * (s % 3), "uniform") for s in range(6)]
+    alone = [robust_fields(planarcal.estimate_homography_robust(p.src, p.dst)) for p in problems]
+    with ThreadPoolExecutor(6) as pool:
+        together = list(
+            pool.map(
+                lambda p: robust_fields(planarcal.estimate_homography_robust(p.src, p.dst)),
+                problems * 3,
+            )
+        )
+    assert together == alone * 3
 
 
 def test_a_batch_gives_what_single_calls_give() -> None:
