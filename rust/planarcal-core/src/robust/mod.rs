@@ -266,6 +266,8 @@ struct Model {
     inliers: usize,
     /// MSAC cost (lower is better), or the median squared residual for LMedS.
     cost: f64,
+    /// A least-squares fit to its inliers (local optimisation's), not a minimal one.
+    fitted: bool,
 }
 
 /// The sample's correspondences, gathered from the normalised data.
@@ -452,13 +454,23 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                     if !promising {
                         continue;
                     }
-                    let mut model = Model { h, inliers, cost };
+                    let mut model = Model {
+                        h,
+                        inliers,
+                        cost,
+                        fitted: false,
+                    };
                     if inliers >= MIN_LO_SUPPORT {
                         lo_runs += 1;
                         if let Some((h, inliers, cost)) =
                             local_opt::optimize(data, &h, inliers, cost)
                         {
-                            model = Model { h, inliers, cost };
+                            model = Model {
+                                h,
+                                inliers,
+                                cost,
+                                fitted: true,
+                            };
                         }
                     }
                     if best.is_some_and(|b| model.cost >= b.cost) {
@@ -529,6 +541,7 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
                     h,
                     inliers: 0,
                     cost: median,
+                    fitted: false,
                 });
             }
         }
@@ -554,6 +567,7 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
             h,
             inliers: 0,
             cost: median,
+            fitted: true,
         });
     }
     // The robust scale: 1.4826 (1 + 5 / (n - 4)) sqrt(median); inliers within 2.5 sigma.
@@ -634,10 +648,10 @@ fn finish(data: &Data, src: &[Point], dst: &[Point], search: Search) -> RobustRe
     for round in 0..FINAL_ROUNDS {
         let s: Vec<Point> = idx.iter().map(|&i| src[i as usize]).collect();
         let d: Vec<Point> = idx.iter().map(|&i| dst[i as usize]).collect();
-        // First the gold-standard pipeline on the inlier set (a minimal model, the search's
-        // best when local optimisation had too few points, can be a poor start), then from
-        // the previous round's fit; either way the other if it fails.
-        let fit = if round == 0 {
+        // From the search's model if it is a least-squares fit already, else by the
+        // gold-standard pipeline (a minimal model can be a poor start), then from the
+        // previous round's fit; either way the other if it fails.
+        let fit = if round == 0 && !best.fitted {
             estimate(&s, &d, Solver::NormalizedDlt, true)
                 .or_else(|_| refine_homography(&s, &d, &start))
         } else {
