@@ -171,6 +171,14 @@ def test_every_flag_is_at_least_as_accurate_as_opencvs(name: str) -> None:
         assert error <= 1.02 * max(theirs_error, gold_error) + 1e-6, (name, seed)
 
 
+@pytest.mark.parametrize("threshold", [0.7, 1.0, 3.0, 12.5])
+def test_the_result_reports_the_callers_threshold(threshold: float) -> None:
+    p = outlying(25, 300, 0.6, "uniform")
+    r = planarcal.estimate_homography_robust(p.src, p.dst, threshold)
+    assert r.threshold == threshold
+    mask_agrees_with_h(r, p)
+
+
 def test_the_given_mask_is_filled_in_place() -> None:
     p = parity_problem(1, 0.6)
     mask = np.full((len(p.src), 1), 7, np.uint8)
