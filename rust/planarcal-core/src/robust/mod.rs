@@ -159,8 +159,10 @@ const MAX_CONCENTRATION_STEPS: usize = 5;
 const MAX_DRAWS_PER_ITERATION: usize = 10;
 /// Fewest inliers of a model worth local optimisation (as many as a refit takes).
 const MIN_LO_SUPPORT: usize = local_opt::MIN_POINTS;
-/// Multiples of the threshold within which the final fit looks for inliers it left out.
+/// Multiples of the threshold within which the final fit looks for inliers it left out, and
+/// the support below which it does.
 const WIDEN: [f64; 2] = [3.0, 2.0];
+const WIDEN_BELOW: usize = 100;
 /// Refits of the final model to its inlier set at most (it settles in one or two; a point
 /// that sits on the threshold could make it alternate).
 const FINAL_ROUNDS: usize = 8;
@@ -668,9 +670,9 @@ fn settle(
 
 /// The final model: fitted to the search's inliers in the caller's units (normalised DLT,
 /// then Levenberg-Marquardt), then refined again while that changes the inlier set; then
-/// refitted once more from the points within a few thresholds of it, kept if that lowers the
-/// MSAC cost (a fit can settle without an inlier it pushed just past the threshold; measured
-/// on 8 inliers among 40). The mask is always the final H's. `threshold` is the caller's
+/// with fewer than WIDEN_BELOW inliers, refitted once more from the points within a few
+/// thresholds of it, kept if that lowers the MSAC cost (a fit to few inliers can settle
+/// without one it pushed just past the threshold; measured on 8 inliers among 40). The mask is always the final H's. `threshold` is the caller's
 /// (MSAC) or the one the search derived (LMedS).
 fn finish(
     data: &Data,
@@ -700,6 +702,10 @@ fn finish(
         let Some((h, e2)) = &fitted else {
             break;
         };
+        // With many inliers, one left out moves the fit by little.
+        if best.inliers >= WIDEN_BELOW {
+            break;
+        }
         let wide: Vec<u32> = (0..n as u32)
             .filter(|&i| e2[i as usize] <= widen * widen * t2)
             .collect();
