@@ -47,8 +47,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-from machine import cpu_model, load_average
 from numpy.typing import NDArray
+from report import cpu_model, load_average, table_lines
 
 import planarcal as pc
 
@@ -435,10 +435,7 @@ def print_report(
         for key, value in env:
             print(f"- {key}: {value}")
         print()
-        print("| " + " | ".join(HEADERS) + " |")
-        print("|" + "|".join("---:" if right else "---" for right in RIGHT_ALIGNED) + "|")
-        for cell_row in cells:
-            print("| " + " | ".join(cell_row) + " |")
+        print("\n".join(table_lines(HEADERS, RIGHT_ALIGNED, cells, markdown=True)))
         print()
         print(summary)
         return
@@ -447,19 +444,7 @@ def print_report(
     for key, value in env:
         print(f"{key:<{width}} : {value}")
     print()
-    widths = [max(len(c[i]) for c in [HEADERS, *cells]) for i in range(len(HEADERS))]
-
-    def line(values: Sequence[str]) -> str:
-        padded = (
-            v.rjust(w) if right else v.ljust(w)
-            for v, w, right in zip(values, widths, RIGHT_ALIGNED, strict=True)
-        )
-        return " | ".join(padded).rstrip()
-
-    print(line(HEADERS))
-    print("-+-".join("-" * w for w in widths))
-    for c in cells:
-        print(line(c))
+    print("\n".join(table_lines(HEADERS, RIGHT_ALIGNED, cells, markdown=False)))
     print()
     print(summary)
 

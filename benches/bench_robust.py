@@ -82,8 +82,8 @@ from typing import Any, Literal
 
 import cv2
 import numpy as np
-from machine import cpu_model, load_average
 from numpy.typing import NDArray
+from report import cpu_model, load_average, table_lines
 
 import planarcal as pc
 
@@ -269,7 +269,7 @@ class Section:
 # Contenders
 
 
-def planarcal_robust(problem: Problem, seed: int) -> Homography:
+def planarcal_robust(problem: Problem, seed: int, with_scores: bool = False) -> Homography:
     return pc.estimate_homography_robust(
         problem.src,
         problem.dst,
@@ -277,19 +277,12 @@ def planarcal_robust(problem: Problem, seed: int) -> Homography:
         confidence=CONFIDENCE,
         max_iters=MAX_ITERS,
         seed=seed,
+        scores=problem.scores if with_scores else None,
     ).H
 
 
 def planarcal_robust_with_scores(problem: Problem, seed: int) -> Homography:
-    return pc.estimate_homography_robust(
-        problem.src,
-        problem.dst,
-        threshold=THRESHOLD_PX,
-        confidence=CONFIDENCE,
-        max_iters=MAX_ITERS,
-        seed=seed,
-        scores=problem.scores,
-    ).H
+    return planarcal_robust(problem, seed, with_scores=True)
 
 
 def planarcal_drop_in(problem: Problem, seed: int) -> Homography:
@@ -966,22 +959,7 @@ def parallel_throughput() -> str:
 
 def render_table(table: Table, markdown: bool) -> list[str]:
     """The table's lines: Markdown, or plain text with aligned columns."""
-    headers, right_aligned, rows = table.headers, table.right_aligned, table.rows
-    if markdown:
-        lines = ["| " + " | ".join(headers) + " |"]
-        lines.append("|" + "|".join("---:" if right else "---" for right in right_aligned) + "|")
-        lines += ["| " + " | ".join(row) + " |" for row in rows]
-        return lines
-    widths = [max(len(row[k]) for row in [headers, *rows]) for k in range(len(headers))]
-
-    def line(values: Sequence[str]) -> str:
-        padded = (
-            value.rjust(width) if right else value.ljust(width)
-            for value, width, right in zip(values, widths, right_aligned, strict=True)
-        )
-        return " | ".join(padded).rstrip()
-
-    return [line(headers), "-+-".join("-" * w for w in widths), *(line(r) for r in rows)]
+    return table_lines(table.headers, table.right_aligned, table.rows, markdown)
 
 
 def print_report(
