@@ -1,11 +1,17 @@
 """The exceptions of planarcal's Python layer. Where the input is at fault they are
 ValueErrors, so ``except ValueError`` works for users who do not know the library; the
 homography errors of the Rust core (HomographyError and its subclasses) are re-exported here
-so one module names them all."""
+so one module names them all (LensModelError, for lens models that cannot be fitted or
+applied, comes from the core too)."""
 
 from __future__ import annotations
 
-from planarcal._core import DegenerateError, HomographyError, PointAtInfinityError
+from planarcal._core import (
+    DegenerateError,
+    HomographyError,
+    LensModelError,
+    PointAtInfinityError,
+)
 
 __all__ = [
     "BoardError",
@@ -15,6 +21,8 @@ __all__ = [
     "DegenerateError",
     "HomographyError",
     "ImageError",
+    "IntrinsicsError",
+    "LensModelError",
     "PointAtInfinityError",
 ]
 
@@ -37,3 +45,9 @@ class CalibrationFileError(ValueError):
 
 class CameraError(OSError):
     """A camera, video, stream or image folder that cannot be opened or stops delivering."""
+
+
+class IntrinsicsError(ValueError):
+    """Camera intrinsics that cannot be used or estimated: a malformed camera matrix or
+    distortion vector, an unreadable OpenCV YAML file, too few or degenerate board views."""
+

@@ -6,7 +6,10 @@
 //! least squares); `refine` polishes it by Levenberg-Marquardt; `orientation` fixes its sign
 //! and scale. `transform` maps points through it in batches and `reprojection` measures the
 //! fit; `threads` keeps them off the thread pool in forked children. `estimate` ties these
-//! together. Everything is f64; nothing panics on user input.
+//! together. Beyond the homography, `lens` models radial distortion, `plane_model` fits it
+//! jointly with H, `uncertainty` maps pixels through that fit with their covariance, and
+//! `leave_one_out` gives the honest error of each point. Everything is f64; nothing panics on
+//! user input.
 
 pub mod a33;
 pub mod correspondences;
@@ -14,13 +17,17 @@ pub mod degeneracy;
 pub mod dlt;
 pub mod error;
 pub mod estimate;
+pub mod leave_one_out;
+pub mod lens;
 pub mod normalize;
 pub mod orientation;
+pub mod plane_model;
 pub mod refine;
 pub mod reprojection;
 pub mod robust;
 pub mod threads;
 pub mod transform;
+pub mod uncertainty;
 
 #[cfg(test)]
 mod testing;

@@ -1,6 +1,7 @@
 //! The one place core errors become Python exceptions. All are ValueError subclasses: the
 //! input is at fault. Their __module__ is `planarcal`, where users import them from.
 
+use planarcal_core::lens::LensError;
 use planarcal_core::{HomographyError as CoreError, PointStatus, TransformReport};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
@@ -24,6 +25,22 @@ create_exception!(
     HomographyError,
     "Points that map to infinity or behind the horizon, or that are not finite."
 );
+
+create_exception!(
+    planarcal,
+    LensModelError,
+    PyValueError,
+    "A lens-distortion model that cannot be fitted or applied: no image size to centre it on, \
+     a distortion that folds the image over, a point outside the model's valid radius."
+);
+
+/// A lens error: homography problems keep their own types.
+pub fn lens_to_py(e: LensError) -> PyErr {
+    match e {
+        LensError::Homography(h) => to_py(h),
+        other => LensModelError::new_err(other.to_string()),
+    }
+}
 
 pub fn to_py(e: CoreError) -> PyErr {
     if e.is_degenerate() {

@@ -5,6 +5,7 @@
 mod convert;
 mod errors;
 mod estimate;
+mod plane_model;
 mod reprojection;
 mod robust;
 mod transform;
@@ -27,6 +28,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "PointAtInfinityError",
         py.get_type::<errors::PointAtInfinityError>(),
     )?;
+    m.add("LensModelError", py.get_type::<errors::LensModelError>())?;
+    m.add_class::<plane_model::FittedPlane>()?;
     m.add_function(wrap_pyfunction!(estimate::estimate_homography, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::find_homography, m)?)?;
     m.add_function(wrap_pyfunction!(robust::estimate_homography_robust, m)?)?;
