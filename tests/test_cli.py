@@ -63,11 +63,17 @@ def test_demo_runs_the_whole_pipeline_on_a_rendered_scene(console_script: bool) 
     m = re.search(r"Dot centres against the truth: ([0-9.]+) px RMS", out)
     assert m and float(m.group(1)) < 0.05
     m = re.search(r"mean ([0-9.]+), RMS [0-9.]+, max ([0-9.]+)", out)
+    assert m and float(m.group(1)) < 0.05  # the lens model removes the distortion
+    m = re.search(r"A homography alone \(the paper's model\): mean ([0-9.]+) px", out)
     assert m and 0.2 < float(m.group(1)) < 1.0  # the lens's distortion, like the paper's
+    m = re.search(r"against the truth, with the lens model: ([0-9.]+) mm mean", out)
+    assert m and float(m.group(1)) < 0.02
+    m = re.search(r"against the truth, a homography alone: ([0-9.]+) mm mean", out)
+    assert m and float(m.group(1)) > 0.1
     rows = [line for line in out.splitlines() if re.match(r"\s+ID:\d+ ", line)]
     assert len(rows) == 10
     errors = [float(line.split()[-2]) for line in rows]
-    assert max(errors) < 0.6  # every object within 0.6 mm of where it really is
+    assert max(errors) < 0.3  # every object within 0.3 mm of where it really is
     assert "Located within" in out
 
 

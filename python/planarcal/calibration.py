@@ -5,6 +5,23 @@ H maps world millimetres to image pixels (the paper's Eq. 3); image -> world goe
 H^-1 (its Eq. 8). The default fit is the most accurate (the normalised DLT refined by
 Levenberg-Marquardt: the maximum-likelihood estimate for pixel noise); ``solver="a33",
 refine=False`` reproduces the paper's own estimator.
+
+Beyond the paper:
+
+* **Lens distortion from the one board image** (``lens=``): radial distortion (k1, k2, and
+  optionally its centre) fitted jointly with H, so that H maps to *ideal* pixels and the
+  lens maps those to the real ones. ``lens="auto"`` (the default when the image size is
+  known) fits each model and keeps the one whose leave-one-out error is lowest, a richer
+  model only when it earns its parameters; a board that covers too little of the image to
+  determine distortion gets no lens model, and says so (``lens_note``).
+* **Full intrinsics** (``intrinsics=``, a :class:`~planarcal.intrinsics.CameraIntrinsics`
+  from several board views or OpenCV's YAML): points are undistorted by OpenCV's model
+  first. With intrinsics the camera's pose is known, so ``image_to_world(px, height=h)``
+  maps the top of an object h mm tall to where it really is.
+* **Uncertainty**: ``image_to_world(px, return_std=True)`` gives each point's 1-sigma error
+  in mm from the fit's covariance.
+* **Printer scale**: ``rescaled`` corrects the world frame by an independent measurement of
+  the board's pitch (or its printed check bar), which no homography can see.
 """
 
 from __future__ import annotations
@@ -16,14 +33,20 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planarcal import _core
 from planarcal.board import CircleGridBoard
-from planarcal.errors import BoardError, CalibrationFileError, HomographyError
+from planarcal.errors import (
+    BoardError,
+    CalibrationFileError,
+    HomographyError,
+    IntrinsicsError,
+    LensModelError,
+)
 from planarcal.files import atomic_write
 from planarcal.homography import (
     SOLVERS,
@@ -35,10 +58,72 @@ from planarcal.homography import (
     transform_points,
 )
 
+if TYPE_CHECKING:
+    from planarcal.intrinsics import CameraIntrinsics
+
 F64 = NDArray[np.float64]
 
 FILE_FORMAT = "planarcal-calibration"
-FILE_VERSION = 1
+FILE_VERSION = 2
+READS_VERSIONS = (1, 2)
+
+LensChoice = Literal["auto", "none", "k1", "k1k2", "k1k2c"]
+LENS_MODELS = ("none", "k1", "k1k2", "k1k2c")
+"""The lens models, simplest first: none (a homography alone), k1, k1 + k2, and k1 + k2 with
+the distortion centre fitted too."""
+
+# A richer lens model must lower the mean leave-one-out error by this fraction to be chosen.
+LENS_MARGIN = 0.01
+# The board must reach this fraction of the way from the image centre to its corners for the
+# distortion to be determined at all (a small central board sees almost none of it).
+MIN_LENS_COVERAGE = 0.35
+# A fitted distortion centre farther than this (in half-diagonals) from the image centre is
+# not a lens's: the model is fitting something else (a board that is not flat).
+MAX_CENTRE_OFFSET = 0.2
+
+
+@dataclasses.dataclass(frozen=True)
+class LensModel:
+    """The radial distortion a calibration found: an ideal pixel u is shown at
+    d = c + (u - c) (1 + k1 rho^2 + k2 rho^4), rho = |u - c| / scale (OpenCV's two-term
+    model with the half-diagonal as the unit instead of the focal length)."""
+
+    model: str
+    """Which parameters were fitted: "k1", "k1k2" or "k1k2c" (centre too)."""
+    centre_px: tuple[float, float]
+    scale_px: float
+    k1: float
+    k2: float
+    k1_std: float
+    k2_std: float
+    centre_std_px: tuple[float, float]
+
+    def displacement_px(self, ideal_px: ArrayLike) -> F64:
+        """How far the lens moves each ideal pixel (N, 2), px: real minus ideal."""
+        u = np.asarray(ideal_px, dtype=np.float64).reshape(-1, 2)
+        q = (u - np.array(self.centre_px)) / self.scale_px
+        rho2 = np.sum(q * q, axis=1, keepdims=True)
+        out: F64 = q * self.scale_px * rho2 * (self.k1 + self.k2 * rho2)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class LensCandidate:
+    """One lens model tried by ``lens="auto"`` and what its leave-one-out error said."""
+
+    model: str
+    loo_mean_px: float
+    """Mean leave-one-out error in the image, px (NaN if the model could not be fitted)."""
+    sigma_px: float
+    """Residual standard deviation per coordinate, px."""
+    verdict: str
+    """"chosen", "not earned" (no clear gain over a simpler model) or why it was refused."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: _json_number(v) for k, v in dataclasses.asdict(self).items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,18 +145,30 @@ class CalibrationSummary:
     """Mean leave-one-out error: how far each point lands when the fit has not seen it."""
     loo_rms_mm: float
     loo_max_mm: float
+    lens: str = "none"
+    """The lens model: "none", "k1", "k1k2", "k1k2c" or "intrinsics"."""
+    loo_mean_px: float = float("nan")
+    """Mean leave-one-out error in the image, px."""
+    predicted_loo_rms_mm: float = float("nan")
+    """The RMS leave-one-out error the fit's covariance predicts (compare loo_rms_mm)."""
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
 
 class Calibration:
-    """The plane's homography and its report.
+    """The plane's homography, its lens model, and its report.
 
     Build one from matched points (``Calibration(world_mm, image_px)``), from a detection
     (``Calibration.from_detection``) or straight from an image of the board
     (``Calibration.from_image``); save it with ``save`` and read it back with
     ``Calibration.load``. It pickles, so it travels to worker processes.
+
+    ``lens`` chooses the lens-distortion model (see the module's docstring): "auto" (the
+    default) picks by leave-one-out error when ``image_size`` is known and fits none without
+    it; "none", "k1", "k1k2", "k1k2c" force one. The paper's estimator (``solver="a33",
+    refine=False``) fits no lens. ``intrinsics`` (a CameraIntrinsics) undistorts the points
+    by a full camera model instead, and makes heights above the plane mappable.
     """
 
     def __init__(
@@ -81,8 +178,10 @@ class Calibration:
         *,
         solver: Solver = "normalized_dlt",
         refine: bool = True,
+        lens: LensChoice = "auto",
         board: CircleGridBoard | None = None,
         image_size: tuple[int, int] | None = None,
+        intrinsics: CameraIntrinsics | None = None,
     ) -> None:
         world = _points(world_points, "world_points")
         image = _points(image_points, "image_points")
@@ -93,22 +192,44 @@ class Calibration:
             )
         if solver not in SOLVERS:
             raise HomographyError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-        h = estimate_homography(world, image, solver, bool(refine))
-        self._init(world, image, h, solver, bool(refine), board, image_size)
+        if lens not in ("auto", *LENS_MODELS):
+            raise LensModelError(
+                f"lens must be 'auto' or one of {', '.join(LENS_MODELS)}, got {lens!r}"
+            )
+        size = _image_size(image_size)
+        if intrinsics is not None:
+            from planarcal.intrinsics import CameraIntrinsics
+
+            if not isinstance(intrinsics, CameraIntrinsics):
+                raise IntrinsicsError(
+                    f"intrinsics must be a CameraIntrinsics, got {type(intrinsics).__name__}"
+                )
+            if size is None:
+                size = intrinsics.image_size
+            elif tuple(size) != tuple(intrinsics.image_size):
+                raise IntrinsicsError(
+                    f"the intrinsics are for {intrinsics.image_size[0]} x "
+                    f"{intrinsics.image_size[1]} images, this one is {size[0]} x {size[1]}"
+                )
+        fit = _fit(world, image, solver, bool(refine), lens, size, intrinsics)
+        self._init(world, image, fit, solver, bool(refine), board, size, intrinsics, (1.0, 1.0))
 
     def _init(
         self,
         world: F64,
         image: F64,
-        h: F64,
+        fit: _Fit,
         solver: Solver,
         refine: bool,
         board: CircleGridBoard | None,
         image_size: tuple[int, int] | None,
+        intrinsics: CameraIntrinsics | None,
+        world_scale: tuple[float, float],
     ) -> None:
         self._world = world
         self._image = image
-        self._h = h
+        self._fit = fit
+        self._h = np.array(fit.h, dtype=np.float64)
         self._h.setflags(write=False)
         self._world.setflags(write=False)
         self._image.setflags(write=False)
@@ -116,12 +237,21 @@ class Calibration:
         self.refine = refine
         self.board = board
         self.image_size = None if image_size is None else (int(image_size[0]), int(image_size[1]))
+        self.intrinsics = intrinsics
+        self.world_scale = world_scale
+        """(sx, sy): the factors ``rescaled`` applied to the board's nominal coordinates."""
 
     # -- construction from images ---------------------------------------------------------
 
     @classmethod
     def from_detection(
-        cls, detection: Any, *, solver: Solver = "normalized_dlt", refine: bool = True
+        cls,
+        detection: Any,
+        *,
+        solver: Solver = "normalized_dlt",
+        refine: bool = True,
+        lens: LensChoice = "auto",
+        intrinsics: CameraIntrinsics | None = None,
     ) -> Calibration:
         """The calibration of a BoardDetection (planarcal.detect_board's result)."""
         return cls(
@@ -129,8 +259,10 @@ class Calibration:
             detection.image_points,
             solver=solver,
             refine=refine,
+            lens=lens,
             board=detection.board,
             image_size=detection.image_size,
+            intrinsics=intrinsics,
         )
 
     @classmethod
@@ -141,30 +273,106 @@ class Calibration:
         *,
         solver: Solver = "normalized_dlt",
         refine: bool = True,
+        lens: LensChoice = "auto",
+        intrinsics: CameraIntrinsics | None = None,
         polarity: str = "auto",
     ) -> Calibration:
         """Detects `board` in `image` (array or path) and calibrates from it."""
         from planarcal.detect import detect_board
 
         detection = detect_board(image, board, polarity=polarity)  # type: ignore[arg-type]
-        return cls.from_detection(detection, solver=solver, refine=refine)
+        return cls.from_detection(
+            detection, solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
+        )
+
+    def rescaled(
+        self, measured_pitch_x_mm: float, measured_pitch_y_mm: float | None = None
+    ) -> Calibration:
+        """This calibration with the world frame corrected for the printer's scale.
+
+        A homography cannot see a board printed 1 % too large: every millimetre it reports
+        would be 1 % short. Measure the board independently (the distance between the first
+        and last dot of a row and of a column with a steel rule, divided by the number of
+        gaps; or the printed 100 mm check bar, whose measured length / 100 times the nominal
+        pitch is the pitch) and pass the pitches in X (along a row) and Y (down a column);
+        Y defaults to X. Needs the board the calibration was made with."""
+        if self.board is None:
+            raise BoardError("rescaled needs the board the calibration was made from")
+        px = _positive_mm("measured_pitch_x_mm", measured_pitch_x_mm)
+        py = (
+            px
+            if measured_pitch_y_mm is None
+            else _positive_mm("measured_pitch_y_mm", measured_pitch_y_mm)
+        )
+        sx, sy = px / self.board.pitch, py / self.board.pitch
+        for name, s in (("X", sx), ("Y", sy)):
+            if not 0.8 <= s <= 1.25:
+                raise BoardError(
+                    f"a measured pitch in {name} of {s * self.board.pitch:.3f} mm is "
+                    f"{100 * (s - 1):+.1f} % off the board's {self.board.pitch} mm: not a "
+                    "printer's scale error (a different board, or a measuring slip?)"
+                )
+        # The fit is the same problem in scaled units: refit rather than patch H, so every
+        # figure (covariance, leave-one-out) is in the new millimetres.
+        scale = np.array([sx / self.world_scale[0], sy / self.world_scale[1]])
+        world = np.ascontiguousarray(self._world * scale)
+        lens = self._fit.lens if self._fit.lens in LENS_MODELS else "none"
+        fit = _fit(
+            world, self._image, self.solver, self.refine, lens, self.image_size, self.intrinsics
+        )
+        fit.candidates = self._fit.candidates
+        fit.note = self._fit.note
+        cal = Calibration.__new__(Calibration)
+        cal._init(
+            world,
+            self._image,
+            fit,
+            self.solver,
+            self.refine,
+            self.board,
+            self.image_size,
+            self.intrinsics,
+            (sx, sy),
+        )
+        return cal
 
     # -- the homography and the mapping -----------------------------------------------------
 
     @property
     def H(self) -> F64:
-        """World (mm) -> image (px), 3 x 3, read-only."""
+        """World (mm) -> image (px), 3 x 3, read-only. With a lens model or intrinsics, to
+        the *ideal* (undistorted) pixels; the lens maps those to the real ones."""
         return self._h
 
     @functools.cached_property
     def H_inv(self) -> F64:
-        """Image (px) -> world (mm), 3 x 3, read-only: H^-1 (the paper's Eq. 8)."""
+        """Ideal image (px) -> world (mm), 3 x 3, read-only: H^-1 (the paper's Eq. 8)."""
         inv = np.asarray(np.linalg.inv(self._h), dtype=np.float64)
         # Scaled like H (|h33| = 1), keeping the orientation the true inverse has.
         if abs(inv[2, 2]) > 0:
             inv /= abs(inv[2, 2])
         inv.setflags(write=False)
         return inv
+
+    @property
+    def lens(self) -> LensModel | None:
+        """The radial distortion fitted with H, or None (no lens model, or intrinsics)."""
+        return self._fit.lens_model()
+
+    @property
+    def lens_model(self) -> str:
+        """ "none", "k1", "k1k2", "k1k2c", or "intrinsics"."""
+        return self._fit.lens
+
+    @property
+    def lens_candidates(self) -> tuple[LensCandidate, ...]:
+        """The models ``lens="auto"`` tried, with their leave-one-out errors and verdicts."""
+        return tuple(self._fit.candidates)
+
+    @property
+    def lens_note(self) -> str:
+        """Why the lens model is what it is, in a sentence."""
+        return self._fit.note
 
     @property
     def world_points(self) -> F64:
@@ -174,25 +382,120 @@ class Calibration:
     def image_points(self) -> F64:
         return self._image
 
-    def image_to_world(self, points_px: ArrayLike) -> F64:
-        """Pixel positions -> plane positions in mm: (N, 2) -> (N, 2), or (2,) -> (2,)."""
-        return _map(self._h, points_px, inverse=True)
+    def ideal_points(self, points_px: ArrayLike) -> F64:
+        """Real pixels (N, 2) -> the ideal pinhole pixels H works in (the lens removed)."""
+        arr = _points(points_px, "points_px")
+        if self.intrinsics is not None:
+            return self.intrinsics.undistort_points(arr)
+        out = self._fit.plane.undistort(arr)
+        if not np.isfinite(out).all():
+            k = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
+            raise LensModelError(
+                f"point {k} {tuple(arr[k])} lies beyond the lens model's valid radius"
+            )
+        return out
+
+    def image_to_world(
+        self,
+        points_px: ArrayLike,
+        *,
+        height: float | ArrayLike = 0.0,
+        return_std: bool = False,
+        pixel_sigma: float = 0.0,
+    ) -> Any:
+        """Pixel positions -> plane positions in mm: (N, 2) -> (N, 2), or (2,) -> (2,).
+
+        ``height``: the points are ``height`` mm above the plane (an object's top face;
+        scalar or one per point), not on it: located where they really are. Needs camera
+        intrinsics (``intrinsics=``), which give the camera's position.
+
+        ``return_std=True`` returns ``(mm, std_mm)``: each point's 1-sigma position error
+        (sqrt of the covariance's trace: the RMS distance from the truth) from the fit's
+        uncertainty, plus the pixel's own noise of ``pixel_sigma`` px per coordinate.
+        """
+        arr = np.asarray(points_px, dtype=np.float64)
+        single = arr.ndim == 1
+        if single:
+            if arr.shape != (2,):
+                raise HomographyError(f"a point must have 2 coordinates, got shape {arr.shape}")
+            arr = arr.reshape(1, 2)
+        arr = _points(arr, "points_px")
+        ideal = self.intrinsics.undistort_points(arr) if self.intrinsics is not None else arr
+        world = self._fit.plane.image_to_world(ideal)
+        h = (
+            np.broadcast_to(np.asarray(height, dtype=np.float64), (len(arr),))
+            if np.ndim(height) == 0
+            else np.asarray(height, dtype=np.float64)
+        )
+        if h.shape != (len(arr),) or not np.isfinite(h).all():
+            raise ValueError(
+                f"height must be a finite number or one per point ({len(arr)}), got shape "
+                f"{np.shape(height)}"
+            )
+        lifted = world
+        factor = np.ones(len(arr))
+        if (h != 0).any():
+            from planarcal.intrinsics import points_at_height
+
+            lifted = points_at_height(world, self.camera_pose, h)
+            factor = 1.0 - h / self.camera_pose.distance_mm
+        if not return_std:
+            return lifted[0] if single else lifted
+        cov = self._fit.plane.world_covariance(ideal, float(pixel_sigma))
+        std = np.sqrt(np.trace(cov, axis1=1, axis2=2)) * np.abs(factor)
+        return (lifted[0], float(std[0])) if single else (lifted, std)
+
+    def world_covariance(self, points_px: ArrayLike, *, pixel_sigma: float = 0.0) -> F64:
+        """The 2 x 2 covariance (mm^2) of each point's position on the plane, (N, 2, 2)."""
+        arr = _points(points_px, "points_px")
+        ideal = self.intrinsics.undistort_points(arr) if self.intrinsics is not None else arr
+        return self._fit.plane.world_covariance(ideal, float(pixel_sigma))
 
     def world_to_image(self, points_mm: ArrayLike) -> F64:
-        """Plane positions in mm -> pixel positions: (N, 2) -> (N, 2), or (2,) -> (2,)."""
-        return _map(self._h, points_mm, inverse=False)
+        """Plane positions in mm -> pixel positions (lens included): (N, 2) -> (N, 2), or
+        (2,) -> (2,)."""
+        arr = np.asarray(points_mm, dtype=np.float64)
+        single = arr.ndim == 1
+        if single and arr.shape != (2,):
+            raise HomographyError(f"a point must have 2 coordinates, got shape {arr.shape}")
+        ideal = transform_points(self._h, arr.reshape(-1, 2))
+        out = self._distort(ideal)
+        return out[0] if single else out
+
+    def _distort(self, ideal: F64) -> F64:
+        if self.intrinsics is not None:
+            return self.intrinsics.distort_points(ideal)
+        if self._fit.lens == "none":
+            return ideal
+        return self._fit.plane.distort(ideal)
+
+    @functools.cached_property
+    def camera_pose(self) -> Any:
+        """The camera's pose over the plane (a PlanePoseEstimate: rotation, translation,
+        camera centre in world mm, distance from the plane), from H and the intrinsics."""
+        if self.intrinsics is None:
+            raise IntrinsicsError(
+                "the camera's pose needs camera intrinsics: calibrate with intrinsics= "
+                "(planarcal.calibrate_camera from several board views, or "
+                "CameraIntrinsics.load_yaml)"
+            )
+        from planarcal.intrinsics import plane_pose
+
+        return plane_pose(self.intrinsics.matrix, self._h)
 
     # -- the paper's report -------------------------------------------------------------------
 
     @functools.cached_property
     def reprojected_px(self) -> F64:
-        """Each world point mapped into the image (the paper's Table 3)."""
-        return transform_points(self._h, self._world)
+        """Each world point mapped into the image, lens included (the paper's Table 3)."""
+        return self._distort(transform_points(self._h, self._world))
 
     @functools.cached_property
     def reprojection_errors_px(self) -> F64:
         """||image_i - H world_i|| per point, in px (the paper's Eq. 6, Table 3)."""
-        return reprojection_errors(self._h, self._world, self._image)
+        if self._fit.lens == "none" and self.intrinsics is None:
+            return reprojection_errors(self._h, self._world, self._image)
+        return np.asarray(np.hypot(*(self._image - self.reprojected_px).T), dtype=np.float64)
 
     @functools.cached_property
     def stats(self) -> ReprojectionStats:
@@ -202,7 +505,8 @@ class Calibration:
     @functools.cached_property
     def world_after_mm(self) -> F64:
         """Each image point mapped back to the plane (the paper's Table 4), mm."""
-        return transform_points(self._h, self._image, inverse=True)
+        out: F64 = self.image_to_world(self._image)
+        return out
 
     @functools.cached_property
     def deviations_mm(self) -> F64:
@@ -210,40 +514,70 @@ class Calibration:
         return self.world_after_mm - self._world
 
     @functools.cached_property
-    def loo_deviations_mm(self) -> F64:
-        """Leave-one-out: where each image point lands on the plane under a fit made without
-        it, minus where it is (dX, dY in mm). The honest estimate of mapping accuracy at a
-        point the calibration has not seen; the residuals flatter the fit."""
+    def _loo(self) -> tuple[F64, F64]:
+        """(image px, world mm) of each point under a fit made without it."""
         n = len(self._world)
+        nan = np.full((n, 2), np.nan)
+        if self._fit.lens in LENS_MODELS[1:]:
+            return self._fit.loo()
         if n <= 4:
             # Without one point only 3 remain: no homography can be fitted.
-            return np.full((n, 2), np.nan)
-        out = np.empty((n, 2))
+            return nan, nan.copy()
+        ideal = (
+            self.intrinsics.undistort_points(self._image)
+            if self.intrinsics is not None
+            else self._image
+        )
+        px, mm = nan.copy(), nan.copy()
         keep = np.ones(n, dtype=bool)
         for i in range(n):
             keep[i] = False
             try:
-                h = estimate_homography(
-                    self._world[keep], self._image[keep], self.solver, self.refine
-                )
-                out[i] = (
-                    transform_points(h, self._image[i : i + 1], inverse=True)[0] - self._world[i]
-                )
+                h = estimate_homography(self._world[keep], ideal[keep], self.solver, self.refine)
+                mm[i] = transform_points(h, ideal[i : i + 1], inverse=True)[0]
+                px[i] = self._distort(transform_points(h, self._world[i : i + 1]))[0]
             except HomographyError:
-                out[i] = np.nan  # the rest cannot determine a homography
+                pass  # the rest cannot determine a homography
             keep[i] = True
-        return out
+        return px, mm
+
+    @functools.cached_property
+    def loo_deviations_mm(self) -> F64:
+        """Leave-one-out: where each image point lands on the plane under a fit made without
+        it, minus where it is (dX, dY in mm). The honest estimate of mapping accuracy at a
+        point the calibration has not seen; the residuals flatter the fit."""
+        return self._loo[1] - self._world
 
     @functools.cached_property
     def loo_errors_mm(self) -> F64:
         """Leave-one-out error per point, mm (NaN where the others cannot be fitted)."""
         return np.hypot(self.loo_deviations_mm[:, 0], self.loo_deviations_mm[:, 1])
 
+    @functools.cached_property
+    def loo_errors_px(self) -> F64:
+        """Leave-one-out error per point in the image, px: how far from its dot the fit made
+        without it puts the dot's centre."""
+        d = self._loo[0] - self._image
+        return np.hypot(d[:, 0], d[:, 1])
+
+    @functools.cached_property
+    def predicted_loo_std_mm(self) -> F64:
+        """The leave-one-out error each point should have by the fit's covariance (1-sigma,
+        RMS distance, mm): compare loo_errors_mm. NaN without residual degrees of freedom."""
+        try:
+            cov = self._fit.plane.predicted_loo_covariance()
+        except LensModelError:
+            return np.full(len(self._world), np.nan)
+        return np.asarray(np.sqrt(np.trace(cov, axis1=1, axis2=2)), dtype=np.float64)
+
     def summary(self) -> CalibrationSummary:
         s = self.stats
         dev = np.abs(self.deviations_mm)
         loo = self.loo_errors_mm
         finite = loo[np.isfinite(loo)]
+        loo_px = self.loo_errors_px[np.isfinite(self.loo_errors_px)]
+        pred = self.predicted_loo_std_mm
+        pred = pred[np.isfinite(pred)]
         nan = float("nan")
         return CalibrationSummary(
             n_points=len(self._world),
@@ -258,6 +592,9 @@ class Calibration:
             loo_mean_mm=float(finite.mean()) if finite.size else nan,
             loo_rms_mm=float(np.sqrt(np.mean(finite**2))) if finite.size else nan,
             loo_max_mm=float(finite.max()) if finite.size else nan,
+            lens=self.lens_model,
+            loo_mean_px=float(loo_px.mean()) if loo_px.size else nan,
+            predicted_loo_rms_mm=float(np.sqrt(np.mean(pred**2))) if pred.size else nan,
         )
 
     # -- persistence ------------------------------------------------------------------------
@@ -273,6 +610,12 @@ class Calibration:
             "solver": self.solver,
             "refine": self.refine,
             "homography_world_mm_to_image_px": self._h.tolist(),
+            "lens_model": self.lens_model,
+            "lens": None if self.lens is None else self.lens.to_dict(),
+            "lens_note": self.lens_note,
+            "lens_candidates": [c.to_dict() for c in self.lens_candidates],
+            "intrinsics": None if self.intrinsics is None else self.intrinsics.to_dict(),
+            "world_scale": list(self.world_scale),
             "image_size_px": None if self.image_size is None else list(self.image_size),
             "board": None if self.board is None else self.board.to_dict(),
             "points": {
@@ -292,10 +635,11 @@ class Calibration:
                 f"{source} is not a planarcal calibration (format {data.get('format')!r})"
             )
         version = data.get("version")
-        if version != FILE_VERSION:
+        if version not in READS_VERSIONS or isinstance(version, bool):
             raise CalibrationFileError(
                 f"{source} is calibration file version {version!r}; this planarcal "
-                f"({_core.__version__}) reads version {FILE_VERSION}"
+                f"({_core.__version__}) reads versions "
+                f"{', '.join(str(v) for v in READS_VERSIONS)}"
             )
         try:
             h = np.array(data["homography_world_mm_to_image_px"], dtype=np.float64)
@@ -331,10 +675,10 @@ class Calibration:
             or not all(isinstance(v, int) for v in size)
         ):
             raise CalibrationFileError(f"{source}: image_size_px must be [width, height]")
+        image_size = None if size is None else (size[0], size[1])
+        fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
         cal = cls.__new__(cls)
-        cal._init(
-            world, image, h, solver, refine, board, None if size is None else (size[0], size[1])
-        )
+        cal._init(world, image, fit, solver, refine, board, image_size, intrinsics, world_scale)
         return cal
 
     def save(self, path: str | os.PathLike[str]) -> Path:
@@ -369,7 +713,7 @@ class Calibration:
         s = self.stats
         return (
             f"Calibration({len(self._world)} points, solver={self.solver!r}, "
-            f"refine={self.refine}, mean error {s.mean:.3f} px)"
+            f"refine={self.refine}, lens={self.lens_model!r}, mean error {s.mean:.3f} px)"
         )
 
 
@@ -392,10 +736,285 @@ def _points(value: ArrayLike, name: str) -> F64:
     return np.ascontiguousarray(arr)
 
 
-def _map(h: F64, points: ArrayLike, *, inverse: bool) -> F64:
-    arr = np.asarray(points, dtype=np.float64)
-    if arr.ndim == 1:
-        if arr.shape != (2,):
-            raise HomographyError(f"a point must have 2 coordinates, got shape {arr.shape}")
-        return np.asarray(transform_points(h, arr.reshape(1, 2), inverse=inverse)[0], np.float64)
-    return transform_points(h, arr, inverse=inverse)
+def _image_size(size: Any) -> tuple[int, int] | None:
+    if size is None:
+        return None
+    try:
+        w, h = size
+    except (TypeError, ValueError):
+        raise ValueError(f"image_size must be (width, height), got {size!r}") from None
+    for v in (w, h):
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
+            raise ValueError(f"image_size must be two positive whole numbers, got {size!r}")
+    return int(w), int(h)
+
+
+def _positive_mm(name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise BoardError(f"{name} must be a number of mm, got {value!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise BoardError(f"{name} must be a positive, finite number of mm, got {value!r}")
+    return v
+
+
+@dataclasses.dataclass
+class _Fit:
+    """What a calibration fitted: the core's model (on ideal pixels with intrinsics), its H,
+    which lens model, and how it was chosen."""
+
+    plane: _core.FittedPlane
+    h: F64
+    lens: str
+    candidates: list[LensCandidate]
+    note: str
+    loo_cache: tuple[F64, F64] | None = None
+
+    def lens_model(self) -> LensModel | None:
+        if self.lens not in LENS_MODELS[1:]:
+            return None
+        cx, cy, scale, k1, k2 = self.plane.lens
+        s1, s2, scx, scy = self.plane.lens_std
+        return LensModel(self.lens, (cx, cy), scale, k1, k2, s1, s2, (scx, scy))
+
+    def loo(self) -> tuple[F64, F64]:
+        if self.loo_cache is None:
+            self.loo_cache = self.plane.leave_one_out()
+        return self.loo_cache
+
+
+def _frame_size(image: F64, size: tuple[int, int] | None) -> tuple[float, float]:
+    """The image size that centres the lens frame; without one (a plain homography, where it
+    only sets the parameters' units), a box around the points."""
+    if size is not None:
+        return float(size[0]), float(size[1])
+    reach = np.abs(image).max(axis=0) if len(image) else np.ones(2)
+    return float(2.0 * reach[0] + 2.0), float(2.0 * reach[1] + 2.0)
+
+
+def _plain(world: F64, image: F64, solver: Solver, refine: bool, size: Any) -> tuple[Any, F64]:
+    """The homography by the chosen solver, and the core's model at it (for the covariance)."""
+    h = estimate_homography(world, image, solver, refine)
+    w, hgt = _frame_size(image, size)
+    centre = ((w - 1.0) / 2.0, (hgt - 1.0) / 2.0)
+    plane = _core.FittedPlane.at(
+        h, centre, 0.5 * math.hypot(w, hgt), 0.0, 0.0, world, image, "none", (w, hgt)
+    )
+    return plane, h
+
+
+def _coverage(image: F64, size: tuple[int, int]) -> float:
+    """How far the points reach from the image centre towards its corners (0 to 1)."""
+    w, h = size
+    centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    return float(np.hypot(*(image - centre).T).max() / (0.5 * math.hypot(w, h)))
+
+
+def _fit(
+    world: F64,
+    image: F64,
+    solver: Solver,
+    refine: bool,
+    lens: str,
+    size: tuple[int, int] | None,
+    intrinsics: CameraIntrinsics | None,
+) -> _Fit:
+    paper = solver != "normalized_dlt" or not refine
+    if intrinsics is not None:
+        if lens not in ("auto", "none"):
+            raise LensModelError(
+                f"with intrinsics the lens is the camera model's: lens must be 'auto' or "
+                f"'none', got {lens!r}"
+            )
+        ideal = intrinsics.undistort_points(image)
+        plane, h = _plain(world, ideal, solver, refine, size)
+        return _Fit(plane, h, "intrinsics", [], "points undistorted by the camera's intrinsics")
+    if paper and lens not in ("auto", "none"):
+        raise LensModelError(
+            f"a lens model is fitted jointly with H by Levenberg-Marquardt; solver={solver!r}, "
+            f"refine={refine} fit a homography alone (keep the defaults to use lens={lens!r})"
+        )
+    if lens == "none" or paper:
+        plane, h = _plain(world, image, solver, refine, size)
+        why = "the paper's estimator" if paper else "asked for"
+        return _Fit(plane, h, "none", [], f"no lens model ({why})")
+    if size is None:
+        if lens != "auto":
+            raise LensModelError(
+                "a lens model is centred on the image: give image_size=(width, height)"
+            )
+        plane, h = _plain(world, image, solver, refine, size)
+        return _Fit(plane, h, "none", [], "no lens model (no image size to centre one on)")
+    coverage = _coverage(image, size)
+    if lens != "auto":
+        plane = _core.FittedPlane.fit(world, image, lens, (float(size[0]), float(size[1])))
+        note = f"lens model {lens} (asked for)"
+        if coverage < MIN_LENS_COVERAGE:
+            note += (
+                f"; the board reaches only {coverage:.0%} of the way to the image's corners, "
+                "too little to determine the distortion"
+            )
+        return _Fit(plane, plane.homography, lens, [], note)
+    if coverage < MIN_LENS_COVERAGE:
+        plane, h = _plain(world, image, solver, refine, size)
+        return _Fit(
+            plane,
+            h,
+            "none",
+            [],
+            f"no lens model: the board reaches only {coverage:.0%} of the way from the image "
+            f"centre to its corners (at least {MIN_LENS_COVERAGE:.0%} needed), too little to "
+            "determine the distortion; let the board fill more of the view",
+        )
+    return _select_lens(world, image, solver, refine, size)
+
+
+def _select_lens(
+    world: F64, image: F64, solver: Solver, refine: bool, size: tuple[int, int]
+) -> _Fit:
+    """Fits every lens model and keeps the simplest whose leave-one-out error no richer one
+    beats by LENS_MARGIN."""
+    frame = (float(size[0]), float(size[1]))
+    centre = np.array([(size[0] - 1) / 2.0, (size[1] - 1) / 2.0])
+    half_diagonal = 0.5 * math.hypot(*size)
+    tried: dict[str, tuple[Any, float, float, str]] = {}
+    caches: dict[str, tuple[F64, F64]] = {}
+    for model in LENS_MODELS:
+        try:
+            plane = _core.FittedPlane.fit(world, image, model, frame)
+        except (LensModelError, HomographyError) as e:
+            if model == "none":
+                raise
+            tried[model] = (None, math.nan, math.nan, f"refused: {e}")
+            continue
+        offset = float(np.hypot(*(np.array(plane.lens[:2]) - centre)))
+        if model == "k1k2c" and offset > MAX_CENTRE_OFFSET * half_diagonal:
+            tried[model] = (
+                None,
+                math.nan,
+                plane.sigma,
+                f"refused: its centre ({plane.lens[0]:.0f}, {plane.lens[1]:.0f}) px is "
+                f"{offset:.0f} px from the image centre, not a lens's (is the board flat?)",
+            )
+            continue
+        px, mm = plane.leave_one_out()
+        err = np.hypot(*(px - image).T)
+        err = err[np.isfinite(err)]
+        loo = float(err.mean()) if err.size else math.nan
+        tried[model] = (plane, loo, plane.sigma, "")
+        caches[model] = (px, mm)
+    best = "none"
+    for model in LENS_MODELS[1:]:
+        plane, loo, _, why = tried[model]
+        if plane is not None and loo < tried[best][1] * (1.0 - LENS_MARGIN):
+            best = model
+    candidates = []
+    for model in LENS_MODELS:
+        plane, loo, sigma, why = tried[model]
+        verdict = why or ("chosen" if model == best else "not earned")
+        candidates.append(LensCandidate(model, loo, sigma, verdict))
+    gain = tried["none"][1]
+    if best == "none":
+        plane, h = _plain(world, image, solver, refine, size)
+        note = (
+            "no lens model: none lowered the leave-one-out error by "
+            f"{LENS_MARGIN:.0%} or more ({gain:.3f} px without one)"
+        )
+        return _Fit(plane, h, "none", candidates, note)
+    chosen = tried[best]
+    note = (
+        f"lens model {best}: leave-one-out error {chosen[1]:.3f} px, against {gain:.3f} px "
+        "with a homography alone"
+    )
+    return _Fit(chosen[0], chosen[0].homography, best, candidates, note, caches[best])
+
+
+def _fit_from_dict(
+    data: dict[str, Any],
+    h: F64,
+    world: F64,
+    image: F64,
+    size: tuple[int, int] | None,
+    source: str,
+) -> tuple[_Fit, CameraIntrinsics | None, tuple[float, float]]:
+    """The fit a file describes, checked against its points; CalibrationFileError if not."""
+    lens = data.get("lens_model", "none")
+    lens_data = data.get("lens")
+    intr_data = data.get("intrinsics")
+    scale = data.get("world_scale", [1.0, 1.0])
+    note = data.get("lens_note", "no lens model")
+    cand_data = data.get("lens_candidates", [])
+    try:
+        world_scale = (float(scale[0]), float(scale[1]))
+        if len(scale) != 2 or not all(math.isfinite(v) and v > 0 for v in world_scale):
+            raise ValueError(scale)
+        candidates = [
+            LensCandidate(
+                str(c["model"]),
+                math.nan if c["loo_mean_px"] is None else float(c["loo_mean_px"]),
+                math.nan if c["sigma_px"] is None else float(c["sigma_px"]),
+                str(c["verdict"]),
+            )
+            for c in cand_data
+        ]
+    except (KeyError, TypeError, ValueError, IndexError) as e:
+        raise CalibrationFileError(f"{source}: bad world_scale or lens_candidates: {e!r}") from None
+    intrinsics = None
+    try:
+        if lens == "intrinsics":
+            from planarcal.intrinsics import CameraIntrinsics
+
+            intrinsics = CameraIntrinsics.from_dict(intr_data)
+            ideal = intrinsics.undistort_points(image)
+            w, hgt = _frame_size(ideal, size)
+            plane = _core.FittedPlane.at(
+                h,
+                ((w - 1) / 2, (hgt - 1) / 2),
+                0.5 * math.hypot(w, hgt),
+                0.0,
+                0.0,
+                world,
+                ideal,
+                "none",
+                (w, hgt),
+            )
+        elif lens == "none":
+            w, hgt = _frame_size(image, size)
+            plane = _core.FittedPlane.at(
+                h,
+                ((w - 1) / 2, (hgt - 1) / 2),
+                0.5 * math.hypot(w, hgt),
+                0.0,
+                0.0,
+                world,
+                image,
+                "none",
+                (w, hgt),
+            )
+        elif lens in LENS_MODELS:
+            if size is None or not isinstance(lens_data, dict):
+                raise CalibrationFileError(
+                    f"{source}: lens model {lens!r} without its parameters or the image size"
+                )
+            cx, cy = (float(v) for v in lens_data["centre_px"])
+            plane = _core.FittedPlane.at(
+                h,
+                (cx, cy),
+                float(lens_data["scale_px"]),
+                float(lens_data["k1"]),
+                float(lens_data["k2"]),
+                world,
+                image,
+                lens,
+                (float(size[0]), float(size[1])),
+            )
+        else:
+            raise CalibrationFileError(f"{source}: unknown lens model {lens!r}")
+    except (IntrinsicsError, LensModelError, HomographyError) as e:
+        raise CalibrationFileError(f"{source}: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise CalibrationFileError(
+            f"{source}: the lens is missing or mangles a field: {e!r}"
+        ) from None
+    return _Fit(plane, h, str(lens), candidates, str(note)), intrinsics, world_scale

@@ -78,6 +78,7 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
     fit = f"{s.solver}" + (" + Levenberg-Marquardt" if s.refine else "")
     lines += [
         f"Homography: {fit}, from {s.n_points} points",
+        f"Lens: {cal.lens_note}",
         f"Reprojection error (px): mean {s.mean_px:.3f}, RMS {s.rms_px:.3f}, "
         f"max {s.max_px:.3f} (point {cal.stats.argmax + 1}), min {s.min_px:.3f}",
         f"World coordinates after calibration: |dX| <= {s.max_abs_dx_mm:.3f} mm, "
