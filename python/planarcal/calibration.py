@@ -420,8 +420,6 @@ class Calibration:
                 raise HomographyError(f"a point must have 2 coordinates, got shape {arr.shape}")
             arr = arr.reshape(1, 2)
         arr = _points(arr, "points_px")
-        ideal = self.intrinsics.undistort_points(arr) if self.intrinsics is not None else arr
-        world = self._fit.plane.image_to_world(ideal)
         h = (
             np.broadcast_to(np.asarray(height, dtype=np.float64), (len(arr),))
             if np.ndim(height) == 0
@@ -432,6 +430,8 @@ class Calibration:
                 f"height must be a finite number or one per point ({len(arr)}), got shape "
                 f"{np.shape(height)}"
             )
+        ideal = self.intrinsics.undistort_points(arr) if self.intrinsics is not None else arr
+        world = self._fit.plane.image_to_world(ideal)
         lifted = world
         factor = np.ones(len(arr))
         if (h != 0).any():

@@ -88,9 +88,30 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from planarcal.report import summary_json, summary_text, write_report
 
     board = _board(args)
+    intrinsics = None
+    if args.intrinsics is not None:
+        from planarcal.intrinsics import CameraIntrinsics
+
+        intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
     image = _read_image(args)
     detection = detect_board(image, board, polarity=args.polarity)
-    cal = Calibration.from_detection(detection, solver=args.solver, refine=not args.no_refine)
+    lens = args.lens
+    if intrinsics is not None and lens == "auto":
+        lens = "none"
+    cal = Calibration.from_detection(
+        detection,
+        solver=args.solver,
+        refine=not args.no_refine,
+        lens=lens,
+        intrinsics=intrinsics,
+    )
+    if args.measured_pitch is not None:
+        cal = cal.rescaled(*args.measured_pitch)
+    elif args.check_bar is not None:
+        from planarcal.printable import CHECK_BAR_MM
+
+        pitch = board.pitch * args.check_bar / CHECK_BAR_MM
+        cal = cal.rescaled(pitch)
     saved = cal.save(args.output)
     written = []
     if args.report is not None:
@@ -107,6 +128,16 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         for p in written:
             print(f"Wrote {p}")
     return 0
+
+
+def _pitches(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X or X,Y in mm, got {text!r}") from None
+    if len(values) not in (1, 2):
+        raise argparse.ArgumentTypeError(f"expected X or X,Y in mm, got {text!r}")
+    return values
 
 
 def _read_image(args: argparse.Namespace) -> Any:
@@ -133,7 +164,7 @@ def _cmd_locate(args: argparse.Namespace) -> int:
 
     cal = Calibration.load(args.calibration)
     image = load_image(args.image)
-    objects = locate_objects(image, cal, min_area_px=args.min_area)
+    objects = locate_objects(image, cal, height_mm=args.height, min_area_px=args.min_area)
     if args.annotate is not None:
         atomic_write(args.annotate, png_bytes(draw_objects(image, objects)))
     if args.json:
@@ -146,6 +177,7 @@ def _cmd_locate(args: argparse.Namespace) -> int:
                             "id": o.id,
                             "image_px": list(o.centroid_px),
                             "world_mm": None if o.world_mm is None else list(o.world_mm),
+                            "world_std_mm": o.world_std_mm,
                             "area_px": o.area_px,
                         }
                         for o in objects
@@ -157,12 +189,16 @@ def _cmd_locate(args: argparse.Namespace) -> int:
     if not objects:
         print("No objects found.")
     else:
-        print(f"{'object':<8}{'image x':>10}{'image y':>10}{'X (mm)':>12}{'Y (mm)':>12}")
+        print(
+            f"{'object':<8}{'image x':>10}{'image y':>10}{'X (mm)':>12}{'Y (mm)':>12}"
+            f"{'1-sigma (mm)':>14}"
+        )
         for o in objects:
             wx, wy = o.world_mm if o.world_mm is not None else (float("nan"),) * 2
+            sd = float("nan") if o.world_std_mm is None else o.world_std_mm
             print(
                 f"ID:{o.id:<5}{o.centroid_px[0]:>10.1f}{o.centroid_px[1]:>10.1f}"
-                f"{wx:>12.3f}{wy:>12.3f}"
+                f"{wx:>12.3f}{wy:>12.3f}{sd:>14.4f}"
             )
     if args.annotate is not None:
         print(f"Wrote {args.annotate}")
@@ -237,6 +273,36 @@ def build_parser() -> argparse.ArgumentParser:
         help="dark dots on light paper, light on dark, or try both",
     )
     p.add_argument(
+        "--lens",
+        default="auto",
+        choices=("auto", "none", "k1", "k1k2", "k1k2c"),
+        help="lens-distortion model fitted with the homography: auto (default) keeps the one "
+        "with the lowest leave-one-out error; none is the paper's homography alone",
+    )
+    p.add_argument(
+        "--intrinsics",
+        type=Path,
+        default=None,
+        help="camera intrinsics (OpenCV YAML, e.g. from 'planarcal intrinsics'): undistort "
+        "with them and allow heights above the plane",
+    )
+    scale = p.add_mutually_exclusive_group()
+    scale.add_argument(
+        "--measured-pitch",
+        type=_pitches,
+        default=None,
+        metavar="X[,Y]",
+        help="the board's pitch in mm as measured with a rule (X along a row, Y down a "
+        "column): corrects the printer's scale",
+    )
+    scale.add_argument(
+        "--check-bar",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="the printed 100 mm check bar's length as measured: corrects the printer's scale",
+    )
+    p.add_argument(
         "--report", type=Path, default=None, help="directory for the tables (CSV) and figures (PNG)"
     )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -251,6 +317,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--calibration", required=True, type=Path, help="file from 'calibrate'")
     p.add_argument(
         "--min-area", type=float, default=None, help="smallest object outline area in px^2"
+    )
+    p.add_argument(
+        "--height",
+        type=float,
+        default=0.0,
+        help="the objects' height in mm: their tops are located where they really are "
+        "(needs a calibration made with --intrinsics)",
     )
     p.add_argument("--annotate", type=Path, default=None, help="write the annotated image here")
     p.add_argument("--json", action="store_true", help="print the objects as one JSON object")

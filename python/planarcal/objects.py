@@ -36,6 +36,8 @@ class DetectedObject:
     """x, y, width, height of the outline's bounding box."""
     world_mm: tuple[float, float] | None = None
     """The centroid on the plane, mm, when located through a calibration."""
+    world_std_mm: float | None = None
+    """The calibration's 1-sigma uncertainty of world_mm (RMS distance, mm)."""
 
 
 def detect_objects(
@@ -131,17 +133,22 @@ def _mask(mask: Any, shape: tuple[int, int]) -> NDArray[np.bool_] | None:
     return np.asarray(flat, dtype=bool)
 
 
-def locate_objects(image: Any, calibration: Any, **options: Any) -> list[DetectedObject]:
+def locate_objects(
+    image: Any, calibration: Any, *, height_mm: float = 0.0, **options: Any
+) -> list[DetectedObject]:
     """detect_objects, with each centroid mapped to the plane in mm through `calibration`
-    (the paper's Table 5). Options are those of detect_objects."""
+    (the paper's Table 5), with its 1-sigma uncertainty (``world_std_mm``). Objects whose
+    outlines are ``height_mm`` above the plane (the top face of parts of that height) are
+    located where they really are, which needs a calibration with camera intrinsics.
+    Options are those of detect_objects."""
     objects = detect_objects(image, **options)
     if not objects:
         return []
     px = np.array([o.centroid_px for o in objects])
-    mm = calibration.image_to_world(px)
+    mm, std = calibration.image_to_world(px, height=height_mm, return_std=True)
     return [
-        dataclasses.replace(o, world_mm=(float(x), float(y)))
-        for o, (x, y) in zip(objects, mm, strict=True)
+        dataclasses.replace(o, world_mm=(float(x), float(y)), world_std_mm=float(s))
+        for o, (x, y), s in zip(objects, mm, std, strict=True)
     ]
 
 

@@ -28,7 +28,9 @@ impl MapFailure {
     pub fn describe(self) -> &'static str {
         match self {
             MapFailure::NonFinite => "has a non-finite coordinate",
-            MapFailure::OutsideLens => "lies beyond the lens model's valid radius",
+            MapFailure::OutsideLens => {
+                "lies beyond the image the lens model was fitted on (or its valid radius)"
+            }
             MapFailure::BehindHorizon => "sees no point of the plane (at or beyond its horizon)",
         }
     }
@@ -39,6 +41,8 @@ impl MapFailure {
 pub struct InversePlane {
     hinv: Matrix3<f64>,
     lens: RadialLens,
+    /// Pixels farther than this from the lens centre are refused (px).
+    limit: f64,
 }
 
 impl InversePlane {
@@ -47,7 +51,17 @@ impl InversePlane {
         Ok(InversePlane {
             hinv: invert(&model.h)?,
             lens: model.lens,
+            limit: f64::INFINITY,
         })
+    }
+
+    /// Refuses pixels beyond the image the lens was fitted on (by 5 % of the distance to its
+    /// farthest corner): a distortion polynomial says nothing about where it has no data.
+    pub fn within_image(mut self, width: f64, height: f64) -> Self {
+        if !self.lens.is_identity() {
+            self.limit = 1.05 * self.lens.reach(width, height);
+        }
+        self
     }
 
     /// The world point (mm) pixel d sees.
@@ -55,6 +69,10 @@ impl InversePlane {
     pub fn map(&self, d: Point) -> Result<Point, MapFailure> {
         if !(d[0].is_finite() && d[1].is_finite()) {
             return Err(MapFailure::NonFinite);
+        }
+        let r = (d[0] - self.lens.centre[0]).hypot(d[1] - self.lens.centre[1]);
+        if !(r <= self.limit) {
+            return Err(MapFailure::OutsideLens);
         }
         let u = self.lens.undistort(d).ok_or(MapFailure::OutsideLens)?;
         let v = self.hinv * Vector3::new(u[0], u[1], 1.0);

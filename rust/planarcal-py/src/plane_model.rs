@@ -61,8 +61,10 @@ fn map_error(failure: MapFailure, index: usize, failed: usize, total: usize) -> 
 }
 
 impl FittedPlane {
-    fn new(fit: PlaneFit, world: Vec<Point>, image: Vec<Point>) -> PyResult<Self> {
-        let inverse = InversePlane::new(&fit.model).map_err(lens_to_py)?;
+    fn new(fit: PlaneFit, world: Vec<Point>, image: Vec<Point>, size: [f64; 2]) -> PyResult<Self> {
+        let inverse = InversePlane::new(&fit.model)
+            .map_err(lens_to_py)?
+            .within_image(size[0], size[1]);
         Ok(FittedPlane {
             fit,
             inverse,
@@ -108,7 +110,7 @@ impl FittedPlane {
         let fit = py
             .detach(|| fit_plane(&w, &d, free, size(image_size)))
             .map_err(lens_to_py)?;
-        FittedPlane::new(fit, w, d)
+        FittedPlane::new(fit, w, d, size(image_size))
     }
 
     /// at(h, lens_centre, lens_scale, k1, k2, world, image, lens, image_size)
@@ -140,7 +142,7 @@ impl FittedPlane {
         };
         let (w, d) = (pairs(world, "world")?, pairs(image, "image")?);
         let fit = plane_fit_at(&model, &w, &d, free, size(image_size)).map_err(lens_to_py)?;
-        FittedPlane::new(fit, w, d)
+        FittedPlane::new(fit, w, d, size(image_size))
     }
 
     /// World (mm) -> ideal pixels, 3 x 3, oriented.
