@@ -26,12 +26,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from report import cpu_model, table_lines  # noqa: E402
+from report import cpu_model, table_lines
 
-from planarcal import synth  # noqa: E402
-from planarcal.board import CircleGridBoard  # noqa: E402
-from planarcal.calibration import Calibration  # noqa: E402
-from planarcal.detect import detect_board  # noqa: E402
+from planarcal import synth
+from planarcal.board import CircleGridBoard
+from planarcal.calibration import Calibration
+from planarcal.detect import detect_board
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 REAL = SHARED / "data" / "real" / "boofcv-circle-regular"

@@ -114,7 +114,7 @@ def test_pixels_beyond_the_lens_model_are_refused_not_mapped(scenes) -> None:  #
     lens = cal.lens
     assert lens is not None
     far = np.array([[lens.centre_px[0] + 1e5, lens.centre_px[1]]])
-    with pytest.raises(ValueError, match="beyond|horizon"):
+    with pytest.raises(ValueError, match=r"beyond|horizon"):
         cal.image_to_world(far)
     with pytest.raises(ValueError, match="non-finite"):
         cal.image_to_world([[np.nan, 3.0]])

@@ -1,8 +1,10 @@
 """planarcal: camera pixels to millimetres on a work plane.
 
 The pipeline: print a ``CircleGridBoard`` (``planarcal board``), take a picture of it
-(``Camera``), find it (``detect_board``), calibrate (``Calibration``: the plane's homography
-and its report, saved as JSON), then locate objects in millimetres (``locate_objects``).
+(``Camera``), find it (``detect_board``), calibrate (``Calibration``: the plane's homography,
+its lens model chosen by leave-one-out, its uncertainty and its report, saved as JSON), then
+locate objects in millimetres (``locate_objects``). ``calibrate_camera`` estimates full camera
+intrinsics from several board views, for objects of known height above the plane.
 ``planarcal.synth`` renders scenes with exact truth to test a setup.
 
 Underneath, a Rust core (homography solvers, refinement, batch transforms) with two faces:
@@ -25,7 +27,7 @@ from planarcal._core import (
     __version__,
 )
 from planarcal.board import CircleGridBoard
-from planarcal.calibration import Calibration, CalibrationSummary
+from planarcal.calibration import Calibration, CalibrationSummary, LensCandidate, LensModel
 from planarcal.capture import Camera
 from planarcal.cv import (
     LMEDS,
@@ -48,6 +50,8 @@ from planarcal.errors import (
     CalibrationFileError,
     CameraError,
     ImageError,
+    IntrinsicsError,
+    LensModelError,
 )
 from planarcal.homography import (
     SOLVERS,
@@ -60,6 +64,7 @@ from planarcal.homography import (
     transform_points,
 )
 from planarcal.images import load_image
+from planarcal.intrinsics import CameraIntrinsics, calibrate_camera
 from planarcal.objects import DetectedObject, detect_objects, locate_objects
 from planarcal.robust import (
     RobustMethod,
@@ -94,11 +99,16 @@ __all__ = [
     "CalibrationSummary",
     "Camera",
     "CameraError",
+    "CameraIntrinsics",
     "CircleGridBoard",
     "DegenerateError",
     "DetectedObject",
     "HomographyError",
     "ImageError",
+    "IntrinsicsError",
+    "LensCandidate",
+    "LensModel",
+    "LensModelError",
     "PointAtInfinityError",
     "ReprojectionStats",
     "RobustMethod",
@@ -106,6 +116,7 @@ __all__ = [
     "Solver",
     "StopReason",
     "__version__",
+    "calibrate_camera",
     "detect_board",
     "detect_objects",
     "error_stats",

@@ -130,6 +130,38 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_intrinsics(args: argparse.Namespace) -> int:
+    from planarcal.intrinsics import calibrate_camera
+
+    board = _board(args)
+    if len(args.images) < 3:
+        raise ValueError(
+            f"give at least 3 images of the board, tilted differently ({len(args.images)} given)"
+        )
+    cam = calibrate_camera(
+        [str(p) for p in args.images],
+        board,
+        fix_aspect_ratio=args.fix_aspect_ratio,
+        zero_tangent=args.zero_tangent,
+    )
+    saved = cam.save_yaml(args.output)
+    if args.json:
+        out = cam.to_dict()
+        out["file"] = str(saved)
+        print(json.dumps(out, allow_nan=False))
+        return 0
+    print(
+        f"Camera intrinsics from {cam.n_views} views ({cam.image_size[0]} x {cam.image_size[1]}):"
+    )
+    print(f"  focal length fx {cam.fx:.2f} px, fy {cam.fy:.2f} px")
+    print(f"  principal point ({cam.cx:.2f}, {cam.cy:.2f}) px")
+    print("  distortion " + ", ".join(f"{v:+.5f}" for v in cam.dist_coeffs))
+    if cam.rms_px is not None:
+        print(f"  RMS reprojection error {cam.rms_px:.4f} px")
+    print(f"Saved to {saved}")
+    return 0
+
+
 def _pitches(text: str) -> tuple[float, ...]:
     try:
         values = tuple(float(v) for v in text.split(","))
@@ -307,6 +339,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(run=_cmd_calibrate)
+
+    p = commands.add_parser(
+        "intrinsics",
+        help="estimate camera intrinsics from several board images",
+        description="Find the board in each IMAGE (3 or more, tilted differently: 15-35 degrees "
+        "about different axes), estimate the camera matrix and lens distortion "
+        "(cv2.calibrateCamera) and save them as OpenCV YAML for 'calibrate --intrinsics'.",
+    )
+    p.add_argument("images", nargs="+", type=Path, help="images of the board")
+    _board_arguments(p)
+    p.add_argument("-o", "--output", required=True, type=Path, help="intrinsics file (.yaml)")
+    p.add_argument("--fix-aspect-ratio", action="store_true", help="fx = fy")
+    p.add_argument("--zero-tangent", action="store_true", help="no tangential distortion")
+    p.add_argument("--json", action="store_true", help="print the intrinsics as one JSON object")
+    p.set_defaults(run=_cmd_intrinsics)
 
     p = commands.add_parser(
         "locate",

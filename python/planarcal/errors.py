@@ -50,4 +50,3 @@ class CameraError(OSError):
 class IntrinsicsError(ValueError):
     """Camera intrinsics that cannot be used or estimated: a malformed camera matrix or
     distortion vector, an unreadable OpenCV YAML file, too few or degenerate board views."""
-
