@@ -268,3 +268,72 @@ def test_locate_refuses_a_corrupt_calibration(images: dict[str, Path], tmp_path:
     assert result.returncode == 1 and "not valid JSON" in result.stderr
     result = _run("locate", images["objects"], "--calibration", tmp_path / "none.json")
     assert result.returncode == 1 and "no calibration file" in result.stderr
+
+
+# ------------------------------------------------------------------------------------------
+# lens models, printer scale, intrinsics and heights
+
+
+def test_calibrate_lens_choice_and_printer_scale(images: dict[str, Path], tmp_path: Path) -> None:
+    auto, plain, scaled = tmp_path / "auto.json", tmp_path / "plain.json", tmp_path / "s.json"
+    out = _run("calibrate", images["board"], *BOARD_ARGS, "-o", auto, "--json")
+    assert out.returncode == 0, out.stderr
+    assert planarcal.Calibration.load(auto).lens_model in ("k1", "k1k2", "k1k2c")
+    out = _run("calibrate", images["board"], *BOARD_ARGS, "-o", plain, "--lens", "none", "--json")
+    assert out.returncode == 0, out.stderr
+    a, p = planarcal.Calibration.load(auto), planarcal.Calibration.load(plain)
+    assert p.lens_model == "none" and a.summary().loo_mean_mm < p.summary().loo_mean_mm / 5
+    # The check bar measured 101 mm: every distance grows by 1 %.
+    out = _run("calibrate", images["board"], *BOARD_ARGS, "-o", scaled, "--check-bar", "101")
+    assert out.returncode == 0, out.stderr
+    s = planarcal.Calibration.load(scaled)
+    assert s.world_scale == pytest.approx((1.01, 1.01))
+    px = a.world_to_image(np.array([[0.0, 0.0], [260.0, 180.0]]))
+    d_a, d_s = (np.linalg.norm(np.diff(c.image_to_world(px), axis=0)) for c in (a, s))
+    assert d_s == pytest.approx(1.01 * d_a, rel=1e-6)
+    bad = _run("calibrate", images["board"], "-o", scaled, "--measured-pitch", "30")
+    assert bad.returncode == 1 and "printer's scale" in bad.stderr
+    bad = _run("calibrate", images["board"], "-o", scaled, "--measured-pitch", "x,y")
+    assert bad.returncode == 2 and "X,Y" in bad.stderr
+
+
+def test_intrinsics_then_objects_of_known_height(tmp_path: Path) -> None:
+    board = synth.PAPER_BOARD
+    views = []
+    for k, (tilt, axis) in enumerate(((25, 0), (25, 90), (30, 45), (30, 200), (20, 300))):
+        pose = synth.PlanePose(600.0, tilt_deg=tilt, tilt_axis_deg=axis, look_at_mm=(130, 90))
+        scene = synth.render_scene(synth.PAPER_CAMERA, pose, blur_sigma_px=0.8, noise_sigma=2)
+        path = tmp_path / f"view{k}.png"
+        cv2.imwrite(str(path), scene.image)
+        views.append(path)
+    yaml = tmp_path / "camera.yaml"
+    out = _run("intrinsics", *views, *BOARD_ARGS, "-o", yaml)
+    assert out.returncode == 0, out.stderr
+    assert "focal length" in out.stdout and yaml.exists()
+    cam = planarcal.CameraIntrinsics.load_yaml(yaml)
+    assert cam.fx == pytest.approx(synth.PAPER_CAMERA.focal_px, rel=0.005)
+    # The working view, and a calibration made with the intrinsics.
+    scene = synth.random_paper_scene(3)
+    work = tmp_path / "work.png"
+    cv2.imwrite(str(work), scene.image)
+    cal_path = tmp_path / "calib.json"
+    out = _run("calibrate", work, *BOARD_ARGS, "-o", cal_path, "--intrinsics", yaml)
+    assert out.returncode == 0, out.stderr
+    cal = planarcal.Calibration.load(cal_path)
+    assert cal.lens_model == "intrinsics" and cal.intrinsics == cam
+    # Tops of 20 mm posts: located where they are with the height, millimetres off without.
+    tops = np.array([[20.0, 15.0], [250.0, 20.0], [130.0, 90.0], [240.0, 170.0]])
+    rvec, tvec = scene.pose.rvec_tvec()
+    xyz = np.column_stack([tops, np.full(len(tops), -20.0)])
+    px = cv2.projectPoints(xyz, rvec, tvec, scene.camera.matrix(), scene.camera.dist_coeffs())[0]
+    px = px.reshape(-1, 2)
+    with_height = cal.image_to_world(px, height=20.0)
+    without = cal.image_to_world(px)
+    assert np.abs(with_height - tops).max() < 0.1
+    assert np.hypot(*(without - tops).T).max() > 5.0
+    # Without intrinsics, a height cannot be honoured: it says so.
+    auto = planarcal.Calibration.from_image(work, board)
+    with pytest.raises(planarcal.IntrinsicsError, match="intrinsics"):
+        auto.image_to_world(px, height=20.0)
+    bad = _run("intrinsics", views[0], *BOARD_ARGS, "-o", tmp_path / "x.yaml")
+    assert bad.returncode == 1 and "at least 3" in bad.stderr
