@@ -465,6 +465,8 @@ fn finish(
 ) -> Result<PlaneFit, LensError> {
     let lens = fit.params.lens();
     lens.check_invertible(lens.reach(image_size[0], image_size[1]))?;
+    let jtj_inv =
+        inverse_normal(&fit.jtj, free).ok_or(LensError::Undetermined { model: free.name() })?;
     let n = world.len() - usize::from(fit.skipped.is_some());
     Ok(PlaneFit {
         model: fit.params.model(world)?,
@@ -473,7 +475,7 @@ fn finish(
         iterations: fit.iterations,
         cost: fit.cost,
         dof: 2 * n - free.count(),
-        jtj_inv: fit.jtj_inv,
+        jtj_inv,
     })
 }
 
@@ -482,7 +484,8 @@ pub struct Solved {
     pub params: Params,
     pub cost: f64,
     pub iterations: usize,
-    pub jtj_inv: MatP,
+    /// J^T J at the solution (all parameters; `inverse_normal` restricts it to the free).
+    pub jtj: MatP,
     pub skipped: Option<usize>,
 }
 
@@ -536,7 +539,7 @@ pub fn solve(
                     lambda = (lambda * 0.1).max(1e-12);
                     step_taken = true;
                     if converged {
-                        return solved(params, normal, free, iterations, skip);
+                        return Ok(solved(params, normal, iterations, skip));
                     }
                     break;
                 }
@@ -548,25 +551,17 @@ pub fn solve(
             break;
         }
     }
-    solved(params, normal, free, iterations, skip)
+    Ok(solved(params, normal, iterations, skip))
 }
 
-fn solved(
-    params: Params,
-    normal: Normal,
-    free: LensParams,
-    iterations: usize,
-    skip: Option<usize>,
-) -> Result<Solved, LensError> {
-    let jtj_inv =
-        inverse_normal(&normal.jtj, free).ok_or(LensError::Undetermined { model: free.name() })?;
-    Ok(Solved {
+fn solved(params: Params, normal: Normal, iterations: usize, skip: Option<usize>) -> Solved {
+    Solved {
         params,
         cost: normal.cost,
         iterations,
-        jtj_inv,
+        jtj: normal.jtj,
         skipped: skip,
-    })
+    }
 }
 
 #[cfg(test)]
