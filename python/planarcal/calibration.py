@@ -796,12 +796,16 @@ def _frame_size(image: F64, size: tuple[int, int] | None) -> tuple[float, float]
 def _plain(world: F64, image: F64, solver: Solver, refine: bool, size: Any) -> tuple[Any, F64]:
     """The homography by the chosen solver, and the core's model at it (for the covariance)."""
     h = estimate_homography(world, image, solver, refine)
+    return _plain_at(h, world, image, size), h
+
+
+def _plain_at(h: F64, world: F64, image: F64, size: Any) -> Any:
+    """The core's model of a homography alone, at H (its covariance on these points)."""
     w, hgt = _frame_size(image, size)
     centre = ((w - 1.0) / 2.0, (hgt - 1.0) / 2.0)
-    plane = _core.FittedPlane.at(
+    return _core.FittedPlane.at(
         h, centre, 0.5 * math.hypot(w, hgt), 0.0, 0.0, world, image, "none", (w, hgt)
     )
-    return plane, h
 
 
 def _coverage(image: F64, size: tuple[int, int]) -> float:
@@ -966,32 +970,9 @@ def _fit_from_dict(
             from planarcal.intrinsics import CameraIntrinsics
 
             intrinsics = CameraIntrinsics.from_dict(intr_data)
-            ideal = intrinsics.undistort_points(image)
-            w, hgt = _frame_size(ideal, size)
-            plane = _core.FittedPlane.at(
-                h,
-                ((w - 1) / 2, (hgt - 1) / 2),
-                0.5 * math.hypot(w, hgt),
-                0.0,
-                0.0,
-                world,
-                ideal,
-                "none",
-                (w, hgt),
-            )
+            plane = _plain_at(h, world, intrinsics.undistort_points(image), size)
         elif lens == "none":
-            w, hgt = _frame_size(image, size)
-            plane = _core.FittedPlane.at(
-                h,
-                ((w - 1) / 2, (hgt - 1) / 2),
-                0.5 * math.hypot(w, hgt),
-                0.0,
-                0.0,
-                world,
-                image,
-                "none",
-                (w, hgt),
-            )
+            plane = _plain_at(h, world, image, size)
         elif lens in LENS_MODELS:
             if size is None or not isinstance(lens_data, dict):
                 raise CalibrationFileError(

@@ -1676,28 +1676,11 @@ def paper_scene(
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ImageError(f"seed must be a non-negative whole number, got {seed!r}")
     seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(2)]
-    e = PAPER_EFFECTS
 
     def render(
         board: CircleGridBoard | None, things: Sequence[SceneObject], seed: int
     ) -> RenderedScene:
-        return render_scene(
-            camera,
-            PAPER_POSE,
-            board=board,
-            objects=things,
-            color=color,
-            seed=seed,
-            table_grey=e["table_grey"],
-            paper_grey=e["paper_grey"],
-            ink_grey=e["ink_grey"],
-            metal_grey=e["metal_grey"],
-            blur_sigma_px=e["blur_sigma_px"],
-            noise_sigma=e["noise_sigma"],
-            lighting_gradient=e["lighting_gradient"],
-            lighting_angle_deg=e["lighting_angle_deg"],
-            vignette=e["vignette"],
-        )
+        return _paper_render(camera, PAPER_POSE, board, things, seed, color=color)
 
     calibration = render(PAPER_BOARD, (), seeds[0])
     scene = render(None, PAPER_OBJECTS if objects else (), seeds[1])
@@ -1736,13 +1719,27 @@ def random_paper_scene(
             float(middle[1] + rng.uniform(-10.0, 10.0)),
         ),
     )
+    return _paper_render(PAPER_CAMERA, pose, board, objects, int(rng.integers(0, 2**31)))
+
+
+def _paper_render(
+    camera: CameraModel,
+    pose: PlanePose,
+    board: CircleGridBoard | None,
+    objects: Sequence[SceneObject],
+    seed: int,
+    *,
+    color: bool = False,
+) -> RenderedScene:
+    """render_scene with the paper scene's tones and effects (PAPER_EFFECTS)."""
     e = PAPER_EFFECTS
     return render_scene(
-        PAPER_CAMERA,
+        camera,
         pose,
         board=board,
         objects=objects,
-        seed=int(rng.integers(0, 2**31)),
+        color=color,
+        seed=seed,
         table_grey=e["table_grey"],
         paper_grey=e["paper_grey"],
         ink_grey=e["ink_grey"],
