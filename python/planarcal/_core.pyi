@@ -19,6 +19,7 @@ __all__ = [
     "find_homography",
     "find_homography_robust",
     "perspective_transform",
+    "refine_outline_px",
     "reprojection_errors",
     "transform_points",
 ]
@@ -120,3 +121,6 @@ def reprojection_errors(
 ) -> NDArray[np.float64]: ...
 def error_stats(errors: ArrayLike) -> tuple[int, float, float, float, float, int, int]: ...
 def _after_fork_in_child() -> None: ...
+def refine_outline_px(
+    grey: ArrayLike, outline: ArrayLike
+) -> tuple[NDArray[np.float64], float, float, float]: ...

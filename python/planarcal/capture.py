@@ -592,6 +592,18 @@ class Camera:
         """True after ``close()``, or after a timeout closed the Camera."""
         return self._closed
 
+    @property
+    def ended(self) -> bool:
+        """True once a file or folder has delivered its last frame (never for a camera or a
+        stream, which can only stop delivering)."""
+        return self._ended
+
+    @property
+    def live(self) -> bool:
+        """True for a camera or stream (frames come at their own pace and are lost if not
+        read), False for a file or folder (read at the reader's pace, nothing lost)."""
+        return self._kind in ("device", "stream")
+
     def __repr__(self) -> str:
         state = "closed" if self._closed else "open"
         w, h = self._resolution

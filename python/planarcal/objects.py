@@ -70,23 +70,20 @@ def detect_objects(
     """
     import cv2
 
-    grey = as_grey(image)
-    h, w = grey.shape
+    u8 = _grey_u8(image)
+    h, w = u8.shape
     if not (blur_sigma >= 0):
         raise ImageError(f"blur_sigma must be >= 0, got {blur_sigma!r}")
     min_area = (w * h) / 5000.0 if min_area_px is None else float(min_area_px)
     max_area = (w * h) / 4.0 if max_area_px is None else float(max_area_px)
-    u8 = np.clip(np.rint(grey), 0, 255).astype(np.uint8)
     blurred = cv2.GaussianBlur(u8, (0, 0), blur_sigma) if blur_sigma > 0 else u8
     if canny is None:
-        median = float(np.median(blurred))
+        # The median of a 1-in-16 sample: the same to a grey level, 16 times cheaper.
+        median = float(np.median(blurred[::4, ::4]))
         lo, hi = max(5.0, 0.33 * median), max(15.0, 0.66 * median)
     else:
         lo, hi = float(canny[0]), float(canny[1])
     edges = cv2.Canny(blurred, lo, hi, L2gradient=True)
-    # The edge search reads a lightly smoothed float image: enough to steady the gradient
-    # against sensor noise, little enough not to merge neighbouring edges.
-    smooth = np.asarray(cv2.GaussianBlur(grey.astype(np.float32), (0, 0), 1.0), np.float64)
     # Close small gaps so each outline is one closed contour.
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3))
     edges = cv2.morphologyEx(edges, cv2.MORPH_CLOSE, kernel)
@@ -106,10 +103,9 @@ def detect_objects(
         cx, cy = m["m10"] / area, m["m01"] / area
         outline = contour.reshape(-1, 2).astype(np.float64)
         if subpixel:
-            refined = _edge_outline(smooth, outline)
+            refined = _edge_outline(u8, outline, (x, y, bw, bh))
             if refined is not None:
-                outline = refined
-                area, (cx, cy) = _polygon_area_centroid(outline)
+                outline, area, (cx, cy) = refined
         if keep_mask is not None and not keep_mask[min(h - 1, int(cy)), min(w - 1, int(cx))]:
             continue
         if any(cv2.pointPolygonTest(p, (cx, cy), False) >= 0 for p in polygons):
@@ -121,68 +117,47 @@ def detect_objects(
     ]
 
 
-# How far either side of a traced outline point its edge is looked for, px, and the step.
-_EDGE_REACH = 3.0
-_EDGE_STEP = 0.25
+def _grey_u8(image: Any) -> NDArray[np.uint8]:
+    """The image as 8-bit grey (the paper's Eq. 9 for BGR): camera frames (uint8) go straight
+    through OpenCV; anything else through as_grey's checks and conversions."""
+    import cv2
+
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.size:
+        if image.ndim == 2:
+            return image
+        if image.ndim == 3 and image.shape[2] == 3:
+            return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+    grey = as_grey(image)
+    return np.clip(np.rint(grey), 0, 255).astype(np.uint8)
 
 
-def _edge_outline(smooth: F64, outline: F64) -> F64 | None:
-    """The outline with each point moved along its normal to where the grey level changes
-    fastest (parabolic peak of the derivative), or None if the outline is too short. A point
-    whose steepest change is at the end of its search keeps its place (no edge near it)."""
-    n = len(outline)
-    if n < 12:
+# The edge search reads the object's own region, widened by the search's reach (3 px) and
+# the smoothing's support, lightly smoothed: sigma 1 px steadies the gradient against sensor
+# noise without merging neighbouring edges.
+_EDGE_PAD = 8
+_EDGE_SMOOTH = 1.0
+
+
+def _edge_outline(
+    u8: NDArray[np.uint8], outline: F64, bbox: tuple[int, int, int, int]
+) -> tuple[F64, float, tuple[float, float]] | None:
+    """The outline with each point moved along its normal to the steepest grey-level change
+    (planarcal_core::outline, sub-pixel), with the area and centroid it encloses; None if
+    the outline is too short for normals."""
+    import cv2
+
+    from planarcal import _core
+
+    if len(outline) < 12:
         return None
-    k = 3  # the tangent over 2k points: steady on a staircase of pixels
-    tangent = np.roll(outline, -k, axis=0) - np.roll(outline, k, axis=0)
-    length = np.hypot(tangent[:, 0], tangent[:, 1])
-    ok = length > 0
-    normal = np.zeros_like(tangent)
-    normal[ok] = np.column_stack([tangent[ok, 1], -tangent[ok, 0]]) / length[ok, None]
-    offsets = np.arange(-_EDGE_REACH, _EDGE_REACH + 1e-9, _EDGE_STEP)
-    xs = outline[:, 0:1] + offsets[None, :] * normal[:, 0:1]
-    ys = outline[:, 1:2] + offsets[None, :] * normal[:, 1:2]
-    slope = np.abs(np.diff(_bilinear(smooth, xs, ys), axis=1))
-    j = np.argmax(slope, axis=1)
-    inner = ok & (j > 0) & (j < slope.shape[1] - 1)
-    rows = np.flatnonzero(inner)
-    a, b, c = slope[rows, j[rows] - 1], slope[rows, j[rows]], slope[rows, j[rows] + 1]
-    denom = a - 2.0 * b + c
-    frac = np.where(denom < 0, 0.5 * (a - c) / np.where(denom < 0, denom, -1.0), 0.0)
-    # The derivative between samples j and j + 1 sits half a step past sample j.
-    where = offsets[j[rows]] + (0.5 + np.clip(frac, -0.5, 0.5)) * _EDGE_STEP
-    out: F64 = outline.copy()
-    out[rows] += where[:, None] * normal[rows]
-    return out
-
-
-def _bilinear(img: F64, xs: F64, ys: F64) -> F64:
-    """Bilinear samples of img at (xs, ys), in float64 (cv2.remap's float32 coordinates would
-    make the result depend on where in the image the object is, by 1e-5 px), clamped to the
-    image."""
-    h, w = img.shape
-    x = np.clip(xs, 0.0, w - 1.0)
-    y = np.clip(ys, 0.0, h - 1.0)
-    x0 = np.minimum(np.floor(x).astype(np.intp), w - 2)
-    y0 = np.minimum(np.floor(y).astype(np.intp), h - 2)
-    fx, fy = x - x0, y - y0
-    top = img[y0, x0] * (1.0 - fx) + img[y0, x0 + 1] * fx
-    bottom = img[y0 + 1, x0] * (1.0 - fx) + img[y0 + 1, x0 + 1] * fx
-    out: F64 = top * (1.0 - fy) + bottom * fy
-    return out
-
-
-def _polygon_area_centroid(p: F64) -> tuple[float, tuple[float, float]]:
-    """Area and centroid of a closed polygon (shoelace), in float64."""
-    x, y = p[:, 0], p[:, 1]
-    xn, yn = np.roll(x, -1), np.roll(y, -1)
-    cross = x * yn - xn * y
-    a = 0.5 * float(cross.sum())
-    if a == 0:
-        return 0.0, (float(x.mean()), float(y.mean()))
-    cx = float(((x + xn) * cross).sum()) / (6.0 * a)
-    cy = float(((y + yn) * cross).sum()) / (6.0 * a)
-    return abs(a), (cx, cy)
+    h, w = u8.shape
+    x, y, bw, bh = bbox
+    x0, y0 = max(0, x - _EDGE_PAD), max(0, y - _EDGE_PAD)
+    x1, y1 = min(w, x + bw + _EDGE_PAD), min(h, y + bh + _EDGE_PAD)
+    region = cv2.GaussianBlur(u8[y0:y1, x0:x1].astype(np.float32), (0, 0), _EDGE_SMOOTH)
+    offset = np.array([x0, y0], dtype=np.float64)
+    refined, area, cx, cy = _core.refine_outline_px(region, outline - offset)
+    return refined + offset, float(area), (float(cx) + x0, float(cy) + y0)
 
 
 def _reading_order(found: list[Any]) -> list[Any]:

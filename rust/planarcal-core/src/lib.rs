@@ -21,6 +21,7 @@ pub mod leave_one_out;
 pub mod lens;
 pub mod normalize;
 pub mod orientation;
+pub mod outline;
 pub mod plane_model;
 pub mod refine;
 pub mod reprojection;

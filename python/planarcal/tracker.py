@@ -1,0 +1,410 @@
+"""The production loop: frames in, object positions in millimetres out, for hours.
+
+``Tracker(calibration, source)`` reads frames from a camera, stream, video file or image
+folder (``planarcal.Camera``), finds the objects in each (``detect_objects``), maps all of a
+frame's centroids to the plane in one call into the Rust core (with their 1-sigma
+uncertainty), and gives each object an ID that it keeps from frame to frame while it stays in
+view. Iterating the tracker yields one ``FrameResult`` per frame.
+
+It does not stop on a bad frame:
+
+* a frame that cannot be decoded, or one of the wrong size, is counted (``corrupt``) and
+  skipped;
+* a camera or stream that stops delivering (unplugged, a stalled network) is reopened with
+  exponential back-off (``reconnects``), for as long as it takes, unless
+  ``max_reconnect_s`` says otherwise;
+* a frame whose processing fails (a detector error) is counted (``failed``) and skipped.
+
+Reading runs on its own thread, a couple of frames ahead, so decoding overlaps with
+processing (OpenCV releases the GIL while it decodes; the core releases it while it maps).
+With a live source, frames that arrive while the loop is still busy with an older one are
+dropped, the oldest first, and counted (``dropped``): a robot wants the newest positions.
+With a file or folder nothing is dropped: the reader waits for the loop.
+
+IDs: nearest-neighbour association in world coordinates. Each object of a frame takes the ID
+of the nearest track of the previous frames within ``max_jump_mm``, closest pairs first;
+objects left over start new tracks; a track unseen for more than ``max_missing`` frames ends.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import queue
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal.calibration import Calibration
+from planarcal.capture import Camera, Frame
+from planarcal.errors import CameraError
+from planarcal.objects import detect_objects
+
+F64 = NDArray[np.float64]
+
+__all__ = ["FrameResult", "LoopStats", "TrackedObject", "Tracker"]
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class TrackedObject:
+    """One object in one frame."""
+
+    id: int
+    """Stable while the object stays in view (1, 2, ... in order of first appearance)."""
+    centroid_px: tuple[float, float]
+    world_mm: tuple[float, float]
+    std_mm: float
+    """The calibration's 1-sigma uncertainty of world_mm (RMS distance, mm)."""
+    area_px: float
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class FrameResult:
+    """One frame's objects."""
+
+    index: int
+    """0-based position of the frame in the source (skipped frames keep their numbers)."""
+    timestamp: float
+    """When the frame was read, seconds since the epoch (time.time())."""
+    objects: tuple[TrackedObject, ...]
+
+    def to_json(self) -> str:
+        """One compact JSON line (no newline): frame, t, and each object's id, px, mm, std_mm."""
+        objs = ",".join(
+            f'{{"id":{o.id},"px":[{o.centroid_px[0]:.3f},{o.centroid_px[1]:.3f}],'
+            f'"mm":[{o.world_mm[0]:.4f},{o.world_mm[1]:.4f}],"std_mm":{o.std_mm:.5f}}}'
+            for o in self.objects
+        )
+        return f'{{"frame":{self.index},"t":{self.timestamp:.6f},"objects":[{objs}]}}'
+
+
+@dataclasses.dataclass
+class LoopStats:
+    """What the loop did so far."""
+
+    frames: int = 0
+    """Frames processed and yielded."""
+    objects: int = 0
+    """Objects located, over all frames."""
+    corrupt: int = 0
+    """Frames that could not be decoded or had the wrong size."""
+    failed: int = 0
+    """Frames whose processing raised (counted, skipped)."""
+    dropped: int = 0
+    """Frames of a live source dropped because the loop was busy."""
+    reconnects: int = 0
+    """Times the source was reopened after it stopped delivering."""
+    started: float = dataclasses.field(default_factory=time.monotonic)
+    stage_s: dict[str, float] = dataclasses.field(
+        default_factory=lambda: {"read": 0.0, "detect": 0.0, "map": 0.0, "track": 0.0}
+    )
+    """Seconds spent in each stage (read: waiting for the reader thread)."""
+
+    @property
+    def elapsed_s(self) -> float:
+        return time.monotonic() - self.started
+
+    @property
+    def fps(self) -> float:
+        e = self.elapsed_s
+        return self.frames / e if e > 0 else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {k: v for k, v in dataclasses.asdict(self).items() if k != "started"}
+        out["elapsed_s"] = round(self.elapsed_s, 3)
+        out["fps"] = round(self.fps, 2)
+        out["stage_s"] = {k: round(v, 4) for k, v in self.stage_s.items()}
+        return out
+
+
+class _End:
+    """The reader's last word: the source ended, or gave up with `error`."""
+
+    def __init__(self, error: BaseException | None = None) -> None:
+        self.error = error
+
+
+class Tracker:
+    """Frames from ``source`` -> objects in millimetres, per frame; see the module docstring.
+
+    Args:
+        calibration: a Calibration (or a path to a calibration file).
+        source: a device index, stream URL, video file, image folder, or an open Camera.
+        height_mm: the objects' height above the plane (their tops are located where they
+            are; needs a calibration with intrinsics).
+        max_jump_mm: the farthest an object may move between frames and keep its ID.
+        max_missing: frames an object may go unseen and keep its ID.
+        max_frames: stop after this many frames (None: until the source ends or stop()).
+        max_reconnect_s: give up reopening a source that stopped after this long (None:
+            never; a file or folder is never reopened).
+        detect_options: passed to detect_objects (min_area_px, blur_sigma, mask, ...).
+        timeout_s: the Camera's timeout for each blocking step.
+    """
+
+    def __init__(
+        self,
+        calibration: Calibration | str | os.PathLike[str],
+        source: int | str | os.PathLike[str] | Camera,
+        *,
+        height_mm: float = 0.0,
+        max_jump_mm: float = 25.0,
+        max_missing: int = 5,
+        max_frames: int | None = None,
+        max_reconnect_s: float | None = None,
+        detect_options: dict[str, Any] | None = None,
+        timeout_s: float = 5.0,
+    ) -> None:
+        if not isinstance(calibration, Calibration):
+            calibration = Calibration.load(calibration)
+        self.calibration = calibration
+        for name, value in (("height_mm", height_mm), ("max_jump_mm", max_jump_mm)):
+            if not (isinstance(value, int | float) and math.isfinite(value)):
+                raise ValueError(f"{name} must be a finite number, got {value!r}")
+        if max_jump_mm <= 0:
+            raise ValueError(f"max_jump_mm must be > 0, got {max_jump_mm!r}")
+        if isinstance(max_missing, bool) or not isinstance(max_missing, int) or max_missing < 0:
+            raise ValueError(f"max_missing must be a whole number >= 0, got {max_missing!r}")
+        if max_frames is not None and (
+            isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 0
+        ):
+            raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
+        self.height_mm = float(height_mm)
+        self.max_jump_mm = float(max_jump_mm)
+        self.max_missing = max_missing
+        self.max_frames = max_frames
+        self.max_reconnect_s = max_reconnect_s
+        self.detect_options = dict(detect_options or {})
+        self.stats = LoopStats()
+        self._timeout_s = timeout_s
+        if isinstance(source, Camera):
+            self._camera: Camera | None = source
+            self._spec: int | str | os.PathLike[str] = source.source
+        else:
+            self._spec = source
+            self._camera = Camera(source, timeout_s=timeout_s, color=False)
+        self._live = self._camera.live
+        self._stop = threading.Event()
+        # Bounded: the reader runs at most this many frames ahead of the loop.
+        self._queue: queue.Queue[tuple[int, float, Frame] | _End] = queue.Queue(maxsize=2)
+        self._reader: threading.Thread | None = None
+        self._tracks: dict[int, tuple[F64, int]] = {}  # id -> (last world position, missed)
+        self._next_id = 1
+        self._closed = False
+        self.last_error: BaseException | None = None
+        """The most recent frame-level fault (a corrupt frame, a detector error), for logs."""
+
+    # -- the loop --------------------------------------------------------------------------
+
+    def __iter__(self) -> Iterator[FrameResult]:
+        if self._reader is not None:
+            raise RuntimeError("a Tracker can be iterated once")
+        self.stats = LoopStats()
+        self._reader = threading.Thread(
+            target=self._read_loop, name="planarcal-reader", daemon=True
+        )
+        self._reader.start()
+        try:
+            while not self._stop.is_set():
+                if self.max_frames is not None and self.stats.frames >= self.max_frames:
+                    break
+                t0 = time.perf_counter()
+                item = self._next_item()
+                self.stats.stage_s["read"] += time.perf_counter() - t0
+                if item is None:
+                    continue
+                if isinstance(item, _End):
+                    if item.error is not None:
+                        raise item.error
+                    break
+                index, stamp, frame = item
+                try:
+                    result = self.process(frame, index, stamp)
+                except (ValueError, ArithmeticError) as e:  # a frame the detector chokes on
+                    self.stats.failed += 1
+                    self.last_error = e
+                    continue
+                self.stats.frames += 1
+                self.stats.objects += len(result.objects)
+                yield result
+        finally:
+            self.close()
+
+    def process(self, frame: Frame, index: int = 0, timestamp: float | None = None) -> FrameResult:
+        """One frame's objects, tracked against the frames before it."""
+        stamp = time.time() if timestamp is None else timestamp
+        stage = self.stats.stage_s
+        t0 = time.perf_counter()
+        found = detect_objects(frame, **self.detect_options)
+        t1 = time.perf_counter()
+        stage["detect"] += t1 - t0
+        if not found:
+            self._age_tracks(set())
+            stage["track"] += time.perf_counter() - t1
+            return FrameResult(index, stamp, ())
+        px = np.array([o.centroid_px for o in found], dtype=np.float64)
+        # One call maps the whole frame (and its uncertainty) in the core.
+        mm, std = self.calibration.image_to_world(px, height=self.height_mm, return_std=True)
+        t2 = time.perf_counter()
+        stage["map"] += t2 - t1
+        ids = self._associate(mm)
+        objects = tuple(
+            TrackedObject(
+                int(ids[k]),
+                (float(px[k, 0]), float(px[k, 1])),
+                (float(mm[k, 0]), float(mm[k, 1])),
+                float(std[k]),
+                float(found[k].area_px),
+            )
+            for k in np.argsort(ids)
+        )
+        stage["track"] += time.perf_counter() - t2
+        return FrameResult(index, stamp, objects)
+
+    def stop(self) -> None:
+        """Ends the iteration after the frame in hand (safe from a signal handler or another
+        thread)."""
+        self._stop.set()
+
+    def close(self) -> None:
+        """Stops the reader and releases the source. Idempotent."""
+        self._stop.set()
+        if self._closed:
+            return
+        self._closed = True
+        # Unblock a reader waiting to put a frame.
+        while True:
+            try:
+                self._queue.get_nowait()
+            except queue.Empty:
+                break
+        if self._reader is not None:
+            self._reader.join(timeout=self._timeout_s + 1.0)
+        if self._camera is not None:
+            self._camera.close()
+
+    def __enter__(self) -> Tracker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- reading (on the reader thread) ------------------------------------------------------
+
+    def _next_item(self) -> tuple[int, float, Frame] | _End | None:
+        try:
+            return self._queue.get(timeout=0.1)
+        except queue.Empty:
+            return None  # wake up to look at the stop flag
+
+    def _put(self, item: tuple[int, float, Frame] | _End) -> None:
+        """Hands a frame to the loop: a live source drops the oldest waiting frame when the
+        loop is behind; a file waits (nothing is lost)."""
+        while not self._stop.is_set():
+            try:
+                self._queue.put(item, timeout=0.1)
+                return
+            except queue.Full:
+                if self._live and not isinstance(item, _End):
+                    try:
+                        self._queue.get_nowait()
+                        self.stats.dropped += 1
+                    except queue.Empty:
+                        pass
+
+    def _read_loop(self) -> None:
+        index = 0
+        try:
+            while not self._stop.is_set():
+                camera = self._camera
+                if camera is None or camera.closed:
+                    camera = self._reopen()
+                    if camera is None:
+                        return
+                try:
+                    frame = camera.read()
+                except CameraError as e:
+                    if camera.ended:
+                        self._put(_End())
+                        return
+                    if camera.closed:
+                        continue  # stopped delivering: reopen with back-off
+                    # A frame that cannot be decoded or has the wrong size: skip it.
+                    self.stats.corrupt += 1
+                    self.last_error = e
+                    index += 1
+                    continue
+                self._put((index, time.time(), frame))
+                index += 1
+        except BaseException as e:  # never die silently: the loop re-raises it
+            self._put(_End(e))
+
+    def _reopen(self) -> Camera | None:
+        """Reopens the source with exponential back-off; None if stopped or out of time."""
+        if not self._live:
+            self._put(_End())
+            return None
+        delay, start = 0.1, time.monotonic()
+        while not self._stop.is_set():
+            try:
+                self._camera = Camera(self._spec, timeout_s=self._timeout_s, color=False)
+                self.stats.reconnects += 1
+                return self._camera
+            except CameraError as e:
+                waited = time.monotonic() - start
+                if self.max_reconnect_s is not None and waited >= self.max_reconnect_s:
+                    self._put(
+                        _End(
+                            CameraError(
+                                f"gave up reopening {self._spec!r} after {waited:.1f} s: {e}"
+                            )
+                        )
+                    )
+                    return None
+                self._stop.wait(delay)
+                delay = min(2 * delay, 5.0)
+        return None
+
+    # -- tracking ----------------------------------------------------------------------------
+
+    def _associate(self, mm: F64) -> NDArray[np.int64]:
+        """Each object's ID: the nearest live track within max_jump_mm, closest pairs first."""
+        ids = np.zeros(len(mm), dtype=np.int64)
+        track_ids = list(self._tracks)
+        seen: set[int] = set()
+        if track_ids:
+            last = np.array([self._tracks[t][0] for t in track_ids])
+            d = np.hypot(mm[:, None, 0] - last[None, :, 0], mm[:, None, 1] - last[None, :, 1])
+            order = np.argsort(d, axis=None)
+            used_obj: set[int] = set()
+            for flat in order:
+                i, j = divmod(int(flat), len(track_ids))
+                if d[i, j] > self.max_jump_mm:
+                    break
+                if i in used_obj or track_ids[j] in seen:
+                    continue
+                ids[i] = track_ids[j]
+                used_obj.add(i)
+                seen.add(track_ids[j])
+        for new in np.flatnonzero(ids == 0):
+            ids[new] = self._next_id
+            self._next_id += 1
+        for i, t in enumerate(ids):
+            self._tracks[int(t)] = (mm[i].copy(), 0)
+            seen.add(int(t))
+        self._age_tracks(seen)
+        return ids
+
+    def _age_tracks(self, seen: set[int]) -> None:
+        for t in list(self._tracks):
+            if t in seen:
+                continue
+            pos, missed = self._tracks[t]
+            if missed + 1 > self.max_missing:
+                del self._tracks[t]
+            else:
+                self._tracks[t] = (pos, missed + 1)
