@@ -1,0 +1,240 @@
+"""The production loop: a real video file of a rendered scene with moving objects at known
+positions, an image folder with a corrupt frame, a camera that drops out (fault injection
+around a real Camera), stopping from another thread, and 10,000 frames without memory
+growth."""
+
+from __future__ import annotations
+
+import gc
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+import planarcal.tracker as tracker_module
+from planarcal import synth
+from planarcal.calibration import Calibration
+from planarcal.capture import Camera
+from planarcal.detect import detect_board
+from planarcal.errors import CameraError
+from planarcal.tracker import FrameResult, Tracker
+
+N_FRAMES = 24
+
+
+def moving_objects(k: int) -> list[synth.SceneObject]:
+    """Three parts moving across the table, frame k."""
+    return [
+        synth.SceneObject("nut", (40.0 + 2.0 * k, 40.0), angle_deg=3.0 * k, size_mm=8.0),
+        synth.SceneObject("washer", (200.0, 60.0 + 1.5 * k), size_mm=8.0),
+        synth.SceneObject("disc", (130.0 - 1.0 * k, 150.0), size_mm=12.0),
+    ]
+
+
+@pytest.fixture(scope="module")
+def calibration() -> Calibration:
+    scene = synth.paper_scene(0).calibration
+    return Calibration.from_detection(detect_board(scene.image, synth.PAPER_BOARD))
+
+
+@pytest.fixture(scope="module")
+def video(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, list[np.ndarray]]:
+    """A real video file (MJPEG in AVI, near-lossless) of the moving parts, the truth of each
+    frame (frames x 3 x 2, mm) and the frames themselves."""
+    path = tmp_path_factory.mktemp("video") / "moving.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (1280, 720), False)
+    writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 100)
+    truth, frames = [], []
+    for k in range(N_FRAMES):
+        scene = synth.render_scene(
+            synth.PAPER_CAMERA,
+            synth.PAPER_POSE,
+            board=None,
+            objects=moving_objects(k),
+            seed=k,
+            **synth.PAPER_EFFECTS,
+        )
+        writer.write(scene.image)
+        truth.append(scene.object_centroids_mm)
+        frames.append(scene.image)
+    writer.release()
+    return path, np.array(truth), frames
+
+
+def check_tracks(results: list[FrameResult], truth: np.ndarray, tol_mm: float) -> None:
+    """Every object within tol of a true one, and each ID always the same true object."""
+    owner: dict[int, int] = {}
+    for r in results:
+        assert len(r.objects) == 3, r
+        for o in r.objects:
+            gap = np.hypot(*(truth[r.index] - np.array(o.world_mm)).T)
+            j = int(gap.argmin())
+            assert gap[j] < tol_mm, (r.index, o)
+            assert owner.setdefault(o.id, j) == j, f"ID {o.id} jumped objects at {r.index}"
+    assert sorted(owner) == [1, 2, 3]
+
+
+def test_objects_are_tracked_in_millimetres_through_a_video(calibration, video) -> None:  # type: ignore[no-untyped-def]
+    path, truth, _ = video
+    with Tracker(calibration, path) as t:
+        results = list(t)
+    assert [r.index for r in results] == list(range(N_FRAMES))
+    check_tracks(results, truth, 0.15)
+    s = t.stats
+    assert (s.frames, s.objects, s.corrupt, s.failed, s.dropped) == (
+        N_FRAMES,
+        3 * N_FRAMES,
+        0,
+        0,
+        0,
+    )
+    assert all(o.std_mm < 0.01 for r in results for o in r.objects)
+    assert set(s.stage_s) == {"read", "detect", "map", "track"}
+    # Each frame's JSON line parses back to what it says.
+    import json
+
+    line = json.loads(results[3].to_json())
+    assert line["frame"] == 3 and [o["id"] for o in line["objects"]] == [1, 2, 3]
+
+
+def test_max_frames_and_a_tracker_iterates_once(calibration, video) -> None:  # type: ignore[no-untyped-def]
+    path, _, _ = video
+    t = Tracker(calibration, path, max_frames=5)
+    assert len(list(t)) == 5
+    with pytest.raises(RuntimeError, match="once"):
+        list(t)
+    with pytest.raises(ValueError, match="max_jump_mm"):
+        Tracker(calibration, path, max_jump_mm=0)
+
+
+def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    _, truth, frames = video
+    for k, frame in enumerate(frames[:8]):
+        cv2.imwrite(str(tmp_path / f"frame{k:03d}.png"), frame)
+    # Frame 4 is damaged on disk: a truncated PNG.
+    damaged = tmp_path / "frame004.png"
+    damaged.write_bytes(damaged.read_bytes()[:2000])
+    with Tracker(calibration, tmp_path) as t:
+        results = list(t)
+    assert [r.index for r in results] == [0, 1, 2, 3, 5, 6, 7]
+    assert t.stats.corrupt == 1 and t.last_error is not None
+    check_tracks(results, truth, 0.15)
+
+
+class FlakyCamera:
+    """A real Camera on a video file that behaves like a live camera which is unplugged after
+    `fail_after` frames (its reads then raise and it closes), and whose first `refuse`
+    reopenings fail: fault injection around the real capture path."""
+
+    opened = 0
+    refuse = 2
+
+    def __init__(self, source: Any, *, timeout_s: float = 5.0, color: bool = True) -> None:
+        FlakyCamera.opened += 1
+        if 1 < FlakyCamera.opened <= 1 + FlakyCamera.refuse:
+            raise CameraError(f"{source}: no such device (injected)")
+        self.inner = Camera(source, timeout_s=timeout_s, color=color)
+        self.source = source
+        self.live = True
+        self.ended = False
+        self.closed = False
+        self.fail_after = 6 if FlakyCamera.opened == 1 else 10**9
+        self.reads = 0
+
+    def read(self) -> Any:
+        if self.reads >= self.fail_after:
+            self.closed = True
+            self.inner.close()
+            raise CameraError("camera stopped delivering (injected)")
+        self.reads += 1
+        try:
+            return self.inner.read()
+        except CameraError:
+            self.ended = self.inner.ended
+            raise
+
+    def close(self) -> None:
+        self.closed = True
+        self.inner.close()
+
+
+def test_a_camera_that_drops_out_is_reopened_with_back_off(calibration, video, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    path, truth, _ = video
+    FlakyCamera.opened = 0
+    monkeypatch.setattr(tracker_module, "Camera", FlakyCamera)
+    # A live source drops frames the loop is too slow for: keep it from falling behind here
+    # by reading at most 30 frames in all.
+    with Tracker(calibration, str(path), max_frames=20) as t:
+        results = list(t)
+    assert t.stats.reconnects == 1 and FlakyCamera.opened == 4
+    assert len(results) == 20
+    # The reopened camera starts its video from the beginning: indices go on counting.
+    assert [r.index for r in results[:6]] == list(range(6))
+    for r in results:
+        gaps = [np.hypot(*(truth - np.array(o.world_mm)).T.reshape(2, -1)).min() for o in r.objects]
+        assert max(gaps) < 0.15
+
+
+def test_giving_up_on_a_source_that_stays_away(calibration, video, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    path, _, _ = video
+    FlakyCamera.opened = 0
+    monkeypatch.setattr(FlakyCamera, "refuse", 10**6)
+    monkeypatch.setattr(tracker_module, "Camera", FlakyCamera)
+    t = Tracker(calibration, str(path), max_reconnect_s=0.5)
+    with pytest.raises(CameraError, match="gave up reopening"):
+        list(t)
+    assert t.stats.frames == 6
+
+
+def test_stop_from_another_thread_ends_the_loop_cleanly(calibration, video) -> None:  # type: ignore[no-untyped-def]
+    path, _, _ = video
+    t = Tracker(calibration, path)
+    seen = []
+    for r in t:
+        seen.append(r.index)
+        if r.index == 2:
+            threading.Thread(target=t.stop).start()
+            threading.Event().wait(0.3)
+    assert 3 <= len(seen) <= 5 and seen == list(range(len(seen)))
+
+
+def _rss_bytes() -> int:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="needs /proc (Linux)")
+def test_ten_thousand_frames_without_memory_growth(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    # A small camera keeps the run short: 160 x 120, two parts, a 20-frame clip looped to
+    # 10,000 frames in the video file.
+    cam = synth.CameraModel(width=160, height=120, focal_px=150.0)
+    pose = synth.PlanePose(500.0, look_at_mm=(130.0, 90.0))
+    board = synth.PAPER_BOARD
+    world = board.world_points()
+    cal = Calibration(world, cam.project(world, pose), image_size=(160, 120), lens="none")
+    clip = []
+    for k in range(20):
+        objs = [
+            synth.SceneObject("disc", (60.0 + 3 * k, 60.0), size_mm=40.0),
+            synth.SceneObject("disc", (200.0, 40.0 + 3 * k), size_mm=40.0),
+        ]
+        clip.append(synth.render_scene(cam, pose, board=None, objects=objs, seed=k).image)
+    path = tmp_path / "long.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120), False)
+    for k in range(10_000):
+        writer.write(clip[k % 20])
+    writer.release()
+    samples = []
+    with Tracker(cal, path, detect_options={"min_area_px": 50.0}) as t:
+        for r in t:
+            if r.index in (1_000, 5_000, 9_999):
+                gc.collect()
+                samples.append(_rss_bytes())
+    assert t.stats.frames == 10_000 and t.stats.objects == 20_000
+    assert len(t._tracks) <= 2 + 2 * (t.max_missing + 1)
+    growth = samples[-1] - samples[0]
+    assert growth < 4 * 2**20, [s / 2**20 for s in samples]
