@@ -238,3 +238,151 @@ def test_ten_thousand_frames_without_memory_growth(tmp_path) -> None:  # type: i
     assert len(t._tracks) <= 2 + 2 * (t.max_missing + 1)
     growth = samples[-1] - samples[0]
     assert growth < 4 * 2**20, [s / 2**20 for s in samples]
+
+
+# ------------------------------------------------------------------------------------------
+# planarcal run: the command, its outputs, and its signals
+
+
+def _run(*args: Any, **kwargs: Any) -> Any:
+    import subprocess
+    import sys
+
+    return subprocess.run(
+        [sys.executable, "-m", "planarcal", "run", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        **kwargs,
+    )
+
+
+def _lines(text: str) -> list[dict[str, Any]]:
+    import json
+
+    return [json.loads(line) for line in text.splitlines() if line.strip()]
+
+
+def _check_lines(lines: list[dict[str, Any]], truth: np.ndarray, tol_mm: float) -> None:
+    owner: dict[int, int] = {}
+    for line in lines:
+        k = line["frame"]
+        assert len(line["objects"]) == 3
+        for o in line["objects"]:
+            gap = np.hypot(*(truth[k] - np.array(o["mm"])).T)
+            j = int(gap.argmin())
+            assert gap[j] < tol_mm and owner.setdefault(o["id"], j) == j
+            assert 0 < o["std_mm"] < 0.01
+
+
+def test_run_writes_one_line_per_frame_to_a_file_and_stdout(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    path, truth, _ = video
+    calib = calibration.save(tmp_path / "calib.json")
+    out = tmp_path / "positions.jsonl"
+    result = _run("--source", path, "--calibration", calib, "--output", out, "--fps-report")
+    assert result.returncode == 0, result.stderr
+    lines = _lines(out.read_text())
+    assert [line["frame"] for line in lines] == list(range(N_FRAMES))
+    _check_lines(lines, truth, 0.15)
+    assert "fps" in result.stderr and "detect" in result.stderr  # the stage report
+    summary = result.stderr.split("planarcal run: ", 1)[1]
+    import json
+
+    figures = json.loads(summary)
+    assert figures["frames"] == N_FRAMES and figures["output"]["sent"] == N_FRAMES
+    assert figures["output"]["dropped"] == 0
+    # stdout, limited to 5 frames; the progress line stays off when stderr is not a terminal.
+    result = _run("--source", path, "--calibration", calib, "--max-frames", 5)
+    assert result.returncode == 0, result.stderr
+    _check_lines(_lines(result.stdout), truth, 0.15)
+    assert len(_lines(result.stdout)) == 5 and "\r" not in result.stderr
+
+
+def test_run_sends_to_a_tcp_controller_on_loopback(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import socket
+
+    path, truth, _ = video
+    calib = calibration.save(tmp_path / "calib.json")
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    received: list[bytes] = []
+
+    def controller() -> None:
+        conn, _ = server.accept()
+        with conn:
+            while chunk := conn.recv(65536):
+                received.append(chunk)
+
+    reader = threading.Thread(target=controller, daemon=True)
+    reader.start()
+    result = _run("--source", path, "--calibration", calib, "--output", f"tcp://127.0.0.1:{port}")
+    assert result.returncode == 0, result.stderr
+    reader.join(timeout=10)
+    server.close()
+    lines = _lines(b"".join(received).decode())
+    # The controller connects while the first frames go out: those are dropped, not queued
+    # (a robot wants fresh positions); every line that arrives is whole and in order.
+    assert len(lines) >= N_FRAMES // 2
+    first = lines[0]["frame"]
+    assert [line["frame"] for line in lines] == list(range(first, first + len(lines)))
+    _check_lines(lines, truth, 0.15)
+    import json
+
+    figures = json.loads(result.stderr.split("planarcal run: ", 1)[1])
+    assert figures["output"]["sent"] + figures["output"]["dropped"] == N_FRAMES
+
+
+def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(calibration, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    calib = calibration.save(tmp_path / "calib.json")
+    # A long source: 3,000 frames of one rendered scene.
+    scene = synth.render_scene(
+        synth.PAPER_CAMERA,
+        synth.PAPER_POSE,
+        board=None,
+        objects=moving_objects(0),
+        **synth.PAPER_EFFECTS,
+    )
+    path = tmp_path / "long.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (1280, 720), False)
+    for _ in range(3000):
+        writer.write(scene.image)
+    writer.release()
+    out = tmp_path / "out.jsonl"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "planarcal",
+            "run",
+            "--source",
+            str(path),
+            "--calibration",
+            str(calib),
+            "--output",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 2000):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 0, stderr
+    figures = json.loads(stderr.split("planarcal run: ", 1)[1])
+    assert figures["stopped_by"] == "SIGTERM" and 0 < figures["frames"] < 3000
+    lines = _lines(out.read_text())  # every line complete: the file was flushed
+    assert len(lines) == figures["frames"] == figures["output"]["sent"]
+    bad = _run("--source", path, "--calibration", calib, "--output", "tcp://nohost")
+    assert bad.returncode == 1 and "port" in bad.stderr
+    bad = _run("--source", tmp_path / "missing.mp4", "--calibration", calib)
+    assert bad.returncode == 1 and "missing.mp4" in bad.stderr

@@ -431,7 +431,10 @@ class Calibration:
                 f"{np.shape(height)}"
             )
         ideal = self.intrinsics.undistort_points(arr) if self.intrinsics is not None else arr
-        world = self._fit.plane.image_to_world(ideal)
+        if return_std:
+            world, std = self._fit.plane.image_to_world_std(ideal, float(pixel_sigma))
+        else:
+            world = self._fit.plane.image_to_world(ideal)
         lifted = world
         factor = np.ones(len(arr))
         if (h != 0).any():
@@ -441,8 +444,7 @@ class Calibration:
             factor = 1.0 - h / self.camera_pose.distance_mm
         if not return_std:
             return lifted[0] if single else lifted
-        cov = self._fit.plane.world_covariance(ideal, float(pixel_sigma))
-        std = np.sqrt(np.trace(cov, axis1=1, axis2=2)) * np.abs(factor)
+        std = std * np.abs(factor)
         return (lifted[0], float(std[0])) if single else (lifted, std)
 
     def world_covariance(self, points_px: ArrayLike, *, pixel_sigma: float = 0.0) -> F64:

@@ -1,4 +1,4 @@
-"""The `planarcal` command line: board, calibrate, locate, demo.
+"""The `planarcal` command line: board, intrinsics, calibrate, locate, run, demo.
 
 Exit status: 0 on success, 1 when the job fails (no board in view, a file that cannot be read
 or written: one clear line on stderr, no traceback), 2 for a malformed command line.
@@ -237,6 +237,12 @@ def _cmd_locate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    from planarcal import run
+
+    return run.main(args)
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from planarcal import demo
 
@@ -375,6 +381,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--annotate", type=Path, default=None, help="write the annotated image here")
     p.add_argument("--json", action="store_true", help="print the objects as one JSON object")
     p.set_defaults(run=_cmd_locate)
+
+    p = commands.add_parser(
+        "run",
+        help="the production loop: objects in mm, frame after frame",
+        description="Read frames from SOURCE, locate the objects in each in mm with the "
+        "calibration, keep their IDs from frame to frame, and write one JSON line per frame "
+        "to the output. Survives bad frames and a camera that drops out; Ctrl-C or SIGTERM "
+        "end it cleanly with a summary on stderr.",
+    )
+    p.add_argument(
+        "--source",
+        required=True,
+        help="camera index (0), video file, image folder or stream URL",
+    )
+    p.add_argument("--calibration", required=True, type=Path, help="file from 'calibrate'")
+    p.add_argument(
+        "--output",
+        default="-",
+        help="- (stdout, the default), a file (.jsonl), tcp://host:port or udp://host:port",
+    )
+    p.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    p.add_argument(
+        "--fps-report",
+        action="store_true",
+        help="print the time per frame of each stage at the end",
+    )
+    p.add_argument("--height", type=float, default=0.0, help="the objects' height in mm")
+    p.add_argument(
+        "--min-area", type=float, default=None, help="smallest object outline area in px^2"
+    )
+    p.add_argument(
+        "--max-reconnect",
+        type=float,
+        default=None,
+        metavar="S",
+        help="give up on a camera or stream that stays away this many seconds (default: never)",
+    )
+    p.set_defaults(run=_cmd_run)
 
     p = commands.add_parser(
         "demo",

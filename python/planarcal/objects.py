@@ -10,6 +10,7 @@ IDs follow reading order: rows of objects from the top of the image, left to rig
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -78,8 +79,13 @@ def detect_objects(
     max_area = (w * h) / 4.0 if max_area_px is None else float(max_area_px)
     blurred = cv2.GaussianBlur(u8, (0, 0), blur_sigma) if blur_sigma > 0 else u8
     if canny is None:
-        # The median of a 1-in-16 sample: the same to a grey level, 16 times cheaper.
-        median = float(np.median(blurred[::4, ::4]))
+        # The median grey level of a 1-in-16 sample (OpenCV's nearest-neighbour resize), from
+        # its histogram: the whole image's to a grey level, at a fraction of sorting's cost.
+        small = cv2.resize(
+            blurred, (max(1, w // 4), max(1, h // 4)), interpolation=cv2.INTER_NEAREST
+        )
+        counts = np.bincount(small.ravel(), minlength=256)
+        median = float(np.searchsorted(np.cumsum(counts), 0.5 * small.size))
         lo, hi = max(5.0, 0.33 * median), max(15.0, 0.66 * median)
     else:
         lo, hi = float(canny[0]), float(canny[1])
@@ -92,7 +98,12 @@ def detect_objects(
     keep_mask = _mask(mask, (h, w))
     polygons = [np.asarray(p, dtype=np.float32).reshape(-1, 1, 2) for p in exclude_polygons or []]
     found = []
+    # A closed outline of n chain points has a perimeter of at most n * sqrt(2), and no shape
+    # encloses more than perimeter^2 / (4 pi): shorter outlines cannot reach min_area.
+    shortest = math.sqrt(4.0 * math.pi * min_area) / math.sqrt(2.0)
     for contour in contours:
+        if len(contour) < shortest:
+            continue
         m = cv2.moments(contour)
         area = float(m["m00"])
         if not (min_area <= area <= max_area):
@@ -135,7 +146,8 @@ def _grey_u8(image: Any) -> NDArray[np.uint8]:
 # the smoothing's support, lightly smoothed: sigma 1 px steadies the gradient against sensor
 # noise without merging neighbouring edges.
 _EDGE_PAD = 8
-_EDGE_SMOOTH = 1.0
+_EDGE_KERNEL = np.exp(-0.5 * np.arange(-4.0, 5.0) ** 2)
+_EDGE_KERNEL /= _EDGE_KERNEL.sum()
 
 
 def _edge_outline(
@@ -154,10 +166,10 @@ def _edge_outline(
     x, y, bw, bh = bbox
     x0, y0 = max(0, x - _EDGE_PAD), max(0, y - _EDGE_PAD)
     x1, y1 = min(w, x + bw + _EDGE_PAD), min(h, y + bh + _EDGE_PAD)
-    region = cv2.GaussianBlur(u8[y0:y1, x0:x1].astype(np.float32), (0, 0), _EDGE_SMOOTH)
-    offset = np.array([x0, y0], dtype=np.float64)
-    refined, area, cx, cy = _core.refine_outline_px(region, outline - offset)
-    return refined + offset, float(area), (float(cx) + x0, float(cy) + y0)
+    # Smoothed to float32 in one OpenCV call (the separable Gaussian of sigma 1 px).
+    region = cv2.sepFilter2D(u8[y0:y1, x0:x1], cv2.CV_32F, _EDGE_KERNEL, _EDGE_KERNEL)
+    refined, area, cx, cy = _core.refine_outline_px(region, outline, (float(x0), float(y0)))
+    return refined, float(area), (float(cx), float(cy))
 
 
 def _reading_order(found: list[Any]) -> list[Any]:

@@ -29,6 +29,23 @@ pub struct Grey<'a> {
 }
 
 impl Grey<'_> {
+    /// Bilinear sample at (x, y) known to lie inside [0, w - 1) x [0, h - 1): no clamping.
+    #[inline(always)]
+    fn sample_inside(&self, x: f64, y: f64) -> f64 {
+        let w = self.width;
+        // floor() is one instruction with AVX and stays in the float registers (an integer's
+        // round trip through cvtsi2sd chains every sample to the one before).
+        let (xf, yf) = (x.floor(), y.floor());
+        let (x0, y0) = (xf as usize, yf as usize);
+        let (fx, fy) = (x - xf, y - yf);
+        let i = y0 * w + x0;
+        // One bounds check for the 2 x 2 block (x0 + 1 < w and y0 + 1 < h by the caller).
+        let (row0, row1) = (&self.pixels[i..i + 2], &self.pixels[i + w..i + w + 2]);
+        let top = row0[0] as f64 * (1.0 - fx) + row0[1] as f64 * fx;
+        let bottom = row1[0] as f64 * (1.0 - fx) + row1[1] as f64 * fx;
+        top * (1.0 - fy) + bottom * fy
+    }
+
     /// Bilinear sample at (x, y), clamped to the image (at least 2 x 2).
     #[inline(always)]
     fn sample(&self, x: f64, y: f64) -> f64 {
@@ -50,6 +67,25 @@ impl Grey<'_> {
 /// is undefined, stay where they are. Returns false (and changes nothing) when the outline is
 /// too short or the image smaller than 2 x 2.
 pub fn refine_outline(grey: Grey<'_>, outline: &mut [Point]) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return unsafe { refine_outline_avx2(grey, outline) };
+    }
+    refine_outline_body(grey, outline)
+}
+
+/// The same code compiled with AVX2 (VEX encodings): the float <-> integer conversions of
+/// the bilinear samples then carry no false dependency from one sample to the next, which
+/// made the plain build three times slower. No FMA: the bits are the same either way.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn refine_outline_avx2(grey: Grey<'_>, outline: &mut [Point]) -> bool {
+    refine_outline_body(grey, outline)
+}
+
+#[inline(always)]
+fn refine_outline_body(grey: Grey<'_>, outline: &mut [Point]) -> bool {
     let n = outline.len();
     if n < MIN_POINTS || grey.width < 2 || grey.height < 2 {
         return false;
@@ -59,6 +95,9 @@ pub fn refine_outline(grey: Grey<'_>, outline: &mut [Point]) -> bool {
     }
     let traced = outline.to_vec();
     let mut profile = [0.0f64; SAMPLES];
+    // Strictly below the last pixel centre, so x0 + 1 and y0 + 1 stay in the image.
+    let wmax = (grey.width - 1) as f64;
+    let hmax = (grey.height - 1) as f64;
     for i in 0..n {
         let ahead = traced[(i + TANGENT_SPAN) % n];
         let behind = traced[(i + n - TANGENT_SPAN) % n];
@@ -69,9 +108,21 @@ pub fn refine_outline(grey: Grey<'_>, outline: &mut [Point]) -> bool {
         }
         let (nx, ny) = (ty / len, -tx / len);
         let p = traced[i];
-        for (j, v) in profile.iter_mut().enumerate() {
-            let s = -REACH + j as f64 * STEP;
-            *v = grey.sample(p[0] + s * nx, p[1] + s * ny);
+        // The profile's ends: when both are well inside, no sample needs clamping (the
+        // samples lie on the segment between them).
+        let (ax, ay) = (p[0] - REACH * nx, p[1] - REACH * ny);
+        let (bx, by) = (p[0] + REACH * nx, p[1] + REACH * ny);
+        let inside = |x: f64, y: f64| x >= 0.0 && y >= 0.0 && x < wmax && y < hmax;
+        if inside(ax, ay) && inside(bx, by) {
+            for (j, v) in profile.iter_mut().enumerate() {
+                let s = -REACH + j as f64 * STEP;
+                *v = grey.sample_inside(p[0] + s * nx, p[1] + s * ny);
+            }
+        } else {
+            for (j, v) in profile.iter_mut().enumerate() {
+                let s = -REACH + j as f64 * STEP;
+                *v = grey.sample(p[0] + s * nx, p[1] + s * ny);
+            }
         }
         // The largest |slope| between neighbouring samples, the first if tied.
         let mut best = 0;

@@ -284,6 +284,51 @@ impl FittedPlane {
         array2(py, out, &[2, 2])
     }
 
+    /// image_to_world_std(px, pixel_sigma=0.0)
+    /// --
+    ///
+    /// (mm (N x 2), std_mm (N,)) in one pass: each pixel's place on the plane and its
+    /// 1-sigma error (sqrt of the covariance's trace); raises like image_to_world.
+    #[pyo3(signature = (px, pixel_sigma = 0.0))]
+    fn image_to_world_std<'py>(
+        &self,
+        py: Python<'py>,
+        px: &Bound<'py, PyAny>,
+        pixel_sigma: f64,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        if !(pixel_sigma >= 0.0 && pixel_sigma.is_finite()) {
+            return Err(invalid(format!(
+                "pixel_sigma must be a finite number >= 0, got {pixel_sigma}"
+            )));
+        }
+        if self.fit.dof == 0 {
+            return Err(LensModelError::new_err(
+                "the fit has no residual degrees of freedom (as many parameters as \
+                 coordinates), so its uncertainty cannot be estimated: use more points",
+            ));
+        }
+        let pts = points2(px, "px")?;
+        let pts = pts.as_points();
+        let (world, first, failed) = maybe_detach(py, pts.len(), || self.map_all(pts));
+        if let Some((i, f)) = first {
+            return Err(map_error(f, i, failed, pts.len()));
+        }
+        let fit = &self.fit;
+        let std: Vec<f64> = maybe_detach(py, pts.len(), || {
+            world
+                .chunks_exact(2)
+                .map(|w| {
+                    world_covariance(fit, [w[0], w[1]], pixel_sigma)
+                        .map_or(f64::NAN, |c| c.trace().sqrt())
+                })
+                .collect()
+        });
+        Ok((
+            array2(py, world, &[2])?,
+            PyArray1::from_vec(py, std).into_any(),
+        ))
+    }
+
     /// leave_one_out()
     /// --
     ///
