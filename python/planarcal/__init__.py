@@ -73,6 +73,7 @@ from planarcal.robust import (
     estimate_homography_robust,
     estimate_homography_robust_batch,
 )
+from planarcal.tracker import FrameResult, TrackedObject, Tracker
 
 # A child forked after the thread pool started must not use it (its threads did not survive
 # the fork): the core then runs every batch on the calling thread.
@@ -103,6 +104,7 @@ __all__ = [
     "CircleGridBoard",
     "DegenerateError",
     "DetectedObject",
+    "FrameResult",
     "HomographyError",
     "ImageError",
     "IntrinsicsError",
@@ -115,6 +117,8 @@ __all__ = [
     "RobustResult",
     "Solver",
     "StopReason",
+    "TrackedObject",
+    "Tracker",
     "__version__",
     "calibrate_camera",
     "detect_board",
