@@ -8,8 +8,9 @@
 //! fit; `threads` keeps them off the thread pool in forked children. `estimate` ties these
 //! together. Beyond the homography, `lens` models radial distortion, `plane_model` fits it
 //! jointly with H, `uncertainty` maps pixels through that fit with their covariance, and
-//! `leave_one_out` gives the honest error of each point. Everything is f64; nothing panics on
-//! user input.
+//! `leave_one_out` gives the honest error of each point; `mapper` maps the production loop's
+//! pixels to the plane in batches at memory speed, with the same answers. Everything is f64;
+//! nothing panics on user input.
 
 pub mod a33;
 pub mod correspondences;
@@ -19,6 +20,7 @@ pub mod error;
 pub mod estimate;
 pub mod leave_one_out;
 pub mod lens;
+pub mod mapper;
 pub mod normalize;
 pub mod orientation;
 pub mod outline;

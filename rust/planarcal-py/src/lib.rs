@@ -5,6 +5,7 @@
 mod convert;
 mod errors;
 mod estimate;
+mod mapper;
 mod outline;
 mod plane_model;
 mod reprojection;
@@ -31,6 +32,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add("LensModelError", py.get_type::<errors::LensModelError>())?;
     m.add_class::<plane_model::FittedPlane>()?;
+    m.add_class::<mapper::PlaneMapper>()?;
     m.add_function(wrap_pyfunction!(outline::refine_outline_px, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::estimate_homography, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::find_homography, m)?)?;
