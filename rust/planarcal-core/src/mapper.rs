@@ -49,7 +49,8 @@ const MAX_COEFFICIENTS: usize = 10;
 
 /// The (coefficients, Newton steps) kernels, cheapest first (a degree costs about one
 /// multiply-add a point; a Newton step seven operations and, but for the last, a division).
-/// Each has a compiled kernel (`dispatch!`, which lists the same pairs).
+/// Each has two compiled kernels, with and without the k2 term (`dispatch!`, which lists the
+/// same pairs).
 const CANDIDATES: [(usize, usize); 9] = [
     (4, 1),
     (6, 1),
@@ -546,7 +547,7 @@ enum Kernel {
 
 /// Evaluates `$body` with the type `$p` naming the kernel's `FastPath`, or `$otherwise` when
 /// the kernel has no compiled fast path. The pairs are `CANDIDATES` (a test checks each has
-/// its arm).
+/// its arms).
 macro_rules! dispatch {
     ($kernel:expr, $p:ident => $body:expr, _ => $otherwise:expr) => {
         dispatch!(@arms $kernel, $p, $body, $otherwise,

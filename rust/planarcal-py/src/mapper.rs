@@ -102,7 +102,10 @@ impl PlaneMapper {
     /// image_to_world(px, out=None, invalid="raise")
     /// --
     ///
-    /// Pixels (N x 2 or N x 1 x 2) -> plane (N x 2, mm), into `out` when given.
+    /// Pixels (N x 2 or N x 1 x 2; float64 C-contiguous is read in place, anything else is
+    /// copied first) -> plane (N x 2, mm). With out (float64, C-contiguous, N x 2) the result
+    /// is written there and out is returned: no allocation. Pixels with no place on the plane
+    /// are NaN; invalid="raise" then raises, naming the first (out is filled all the same).
     #[pyo3(signature = (px, out = None, invalid = "raise"))]
     fn image_to_world<'py>(
         &self,
