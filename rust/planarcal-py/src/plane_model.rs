@@ -73,6 +73,34 @@ impl FittedPlane {
         })
     }
 
+    /// The world points of pixels whose uncertainty is asked for: checks pixel_sigma and that
+    /// the fit has residual degrees of freedom, and raises for pixels that cannot be mapped.
+    fn map_for_uncertainty(
+        &self,
+        py: Python<'_>,
+        px: &Bound<'_, PyAny>,
+        pixel_sigma: f64,
+    ) -> PyResult<Vec<f64>> {
+        if !(pixel_sigma >= 0.0 && pixel_sigma.is_finite()) {
+            return Err(invalid(format!(
+                "pixel_sigma must be a finite number >= 0, got {pixel_sigma}"
+            )));
+        }
+        if self.fit.dof == 0 {
+            return Err(LensModelError::new_err(
+                "the fit has no residual degrees of freedom (as many parameters as \
+                 coordinates), so its uncertainty cannot be estimated: use more points",
+            ));
+        }
+        let pts = points2(px, "px")?;
+        let pts = pts.as_points();
+        let (world, first, failed) = maybe_detach(py, pts.len(), || self.map_all(pts));
+        if let Some((i, f)) = first {
+            return Err(map_error(f, i, failed, pts.len()));
+        }
+        Ok(world)
+    }
+
     /// Maps pixels to world points, with the failures' first index and count.
     fn map_all(&self, px: &[Point]) -> (Vec<f64>, Option<(usize, MapFailure)>, usize) {
         let mut out = Vec::with_capacity(2 * px.len());
@@ -253,25 +281,9 @@ impl FittedPlane {
         px: &Bound<'py, PyAny>,
         pixel_sigma: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
-        if !(pixel_sigma >= 0.0 && pixel_sigma.is_finite()) {
-            return Err(invalid(format!(
-                "pixel_sigma must be a finite number >= 0, got {pixel_sigma}"
-            )));
-        }
-        if self.fit.dof == 0 {
-            return Err(LensModelError::new_err(
-                "the fit has no residual degrees of freedom (as many parameters as \
-                 coordinates), so its uncertainty cannot be estimated: use more points",
-            ));
-        }
-        let pts = points2(px, "px")?;
-        let pts = pts.as_points();
-        let (world, first, failed) = self.map_all(pts);
-        if let Some((i, f)) = first {
-            return Err(map_error(f, i, failed, pts.len()));
-        }
+        let world = self.map_for_uncertainty(py, px, pixel_sigma)?;
         let fit = &self.fit;
-        let out: Vec<f64> = maybe_detach(py, pts.len(), || {
+        let out: Vec<f64> = maybe_detach(py, world.len() / 2, || {
             world
                 .chunks_exact(2)
                 .flat_map(|w| {
@@ -296,25 +308,9 @@ impl FittedPlane {
         px: &Bound<'py, PyAny>,
         pixel_sigma: f64,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        if !(pixel_sigma >= 0.0 && pixel_sigma.is_finite()) {
-            return Err(invalid(format!(
-                "pixel_sigma must be a finite number >= 0, got {pixel_sigma}"
-            )));
-        }
-        if self.fit.dof == 0 {
-            return Err(LensModelError::new_err(
-                "the fit has no residual degrees of freedom (as many parameters as \
-                 coordinates), so its uncertainty cannot be estimated: use more points",
-            ));
-        }
-        let pts = points2(px, "px")?;
-        let pts = pts.as_points();
-        let (world, first, failed) = maybe_detach(py, pts.len(), || self.map_all(pts));
-        if let Some((i, f)) = first {
-            return Err(map_error(f, i, failed, pts.len()));
-        }
+        let world = self.map_for_uncertainty(py, px, pixel_sigma)?;
         let fit = &self.fit;
-        let std: Vec<f64> = maybe_detach(py, pts.len(), || {
+        let std: Vec<f64> = maybe_detach(py, world.len() / 2, || {
             world
                 .chunks_exact(2)
                 .map(|w| {
