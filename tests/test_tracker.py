@@ -109,6 +109,11 @@ def test_max_frames_and_a_tracker_iterates_once(calibration, video) -> None:  # 
         list(t)
     with pytest.raises(ValueError, match="max_jump_mm"):
         Tracker(calibration, path, max_jump_mm=0)
+    with pytest.raises(ValueError, match=r"unknown detect_options \['min_aera'\]"):
+        Tracker(calibration, path, detect_options={"min_aera": 5})
+    # Live tracks after the run: the three parts, at their last positions.
+    assert sorted(t.tracks) == [1, 2, 3]
+    assert all(len(p) == 2 for p in t.tracks.values())
 
 
 def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
@@ -235,7 +240,7 @@ def test_ten_thousand_frames_without_memory_growth(tmp_path) -> None:  # type: i
                 gc.collect()
                 samples.append(_rss_bytes())
     assert t.stats.frames == 10_000 and t.stats.objects == 20_000
-    assert len(t._tracks) <= 2 + 2 * (t.max_missing + 1)
+    assert len(t.tracks) <= 2 + 2 * (t.max_missing + 1)
     growth = samples[-1] - samples[0]
     assert growth < 4 * 2**20, [s / 2**20 for s in samples]
 

@@ -1,4 +1,5 @@
 # Stubs of the compiled module planarcal._core (checked by python -m mypy.stubtest).
+from collections.abc import Sequence
 from typing import Any, final
 
 import numpy as np
@@ -11,6 +12,7 @@ __all__ = [
     "LensModelError",
     "PlaneMapper",
     "PointAtInfinityError",
+    "Tracks",
     "__version__",
     "_after_fork_in_child",
     "error_stats",
@@ -19,8 +21,11 @@ __all__ = [
     "estimate_homography_robust_batch",
     "find_homography",
     "find_homography_robust",
+    "frame_json",
+    "measure_contours",
+    "median_grey",
     "perspective_transform",
-    "refine_outline_px",
+    "reading_order",
     "reprojection_errors",
     "transform_points",
 ]
@@ -151,6 +156,35 @@ def reprojection_errors(
 ) -> NDArray[np.float64]: ...
 def error_stats(errors: ArrayLike) -> tuple[int, float, float, float, float, int, int]: ...
 def _after_fork_in_child() -> None: ...
-def refine_outline_px(
-    grey: ArrayLike, outline: ArrayLike, origin: tuple[float, float] = ...
-) -> tuple[NDArray[np.float64], float, float, float]: ...
+def measure_contours(
+    grey: ArrayLike,
+    contours: Sequence[Any],
+    min_area: float,
+    max_area: float,
+    keep_border: bool = False,
+    subpixel: bool = True,
+    outlines: bool = True,
+) -> tuple[
+    NDArray[np.int64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int64],
+    list[NDArray[np.float64]],
+]: ...
+def frame_json(
+    index: int,
+    timestamp: float,
+    ids: Sequence[int],
+    centroids_px: Sequence[tuple[float, float]],
+    world_mm: Sequence[tuple[float, float]],
+    std_mm: Sequence[float],
+) -> str: ...
+def median_grey(grey: ArrayLike, step: int = 4) -> int: ...
+def reading_order(centroids: ArrayLike, heights: ArrayLike) -> NDArray[np.int64]: ...
+
+@final
+class Tracks:
+    def __new__(cls, max_jump: float, max_missing: int) -> Tracks: ...
+    def update(self, positions: ArrayLike) -> NDArray[np.int64]: ...
+    def live(self) -> tuple[NDArray[np.int64], NDArray[np.float64]]: ...
+    def __len__(self) -> int: ...

@@ -32,6 +32,7 @@ import functools
 import json
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -446,6 +447,15 @@ class Calibration:
             return lifted[0] if single else lifted
         std = std * np.abs(factor)
         return (lifted[0], float(std[0])) if single else (lifted, std)
+
+    def _frame_mapper(self, height: float = 0.0) -> Callable[[F64], tuple[F64, F64]]:
+        """image_to_world(px, height=height, return_std=True) for the production loop, its
+        arguments checked here once: the returned function takes an (N, 2) float64 array of
+        pixels straight to the core (one call) when there is nothing to undistort or lift."""
+        if self.intrinsics is None and height == 0.0:
+            plane = self._fit.plane
+            return lambda px: plane.image_to_world_std(px, 0.0)
+        return lambda px: self.image_to_world(px, height=height, return_std=True)
 
     def world_covariance(self, points_px: ArrayLike, *, pixel_sigma: float = 0.0) -> F64:
         """The 2 x 2 covariance (mm^2) of each point's position on the plane, (N, 2, 2)."""

@@ -29,6 +29,7 @@ objects left over start new tracks; a track unseen for more than ``max_missing``
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 import os
 import queue
@@ -40,14 +41,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal import _core
 from planarcal.calibration import Calibration
 from planarcal.capture import Camera, Frame
 from planarcal.errors import CameraError
-from planarcal.objects import detect_objects
+from planarcal.objects import _detect, detect_objects
 
 F64 = NDArray[np.float64]
 
 __all__ = ["FrameResult", "LoopStats", "TrackedObject", "Tracker"]
+
+# The options detect_objects takes (its keyword arguments).
+_DETECT_OPTIONS = frozenset(inspect.signature(detect_objects).parameters) - {"image"}
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -65,22 +70,40 @@ class TrackedObject:
 
 @dataclasses.dataclass(frozen=True, slots=True)
 class FrameResult:
-    """One frame's objects."""
+    """One frame's objects, by column (ordered by ID); ``objects`` gives them one by one."""
 
     index: int
     """0-based position of the frame in the source (skipped frames keep their numbers)."""
     timestamp: float
     """When the frame was read, seconds since the epoch (time.time())."""
-    objects: tuple[TrackedObject, ...]
+    ids: tuple[int, ...] = ()
+    centroids_px: tuple[tuple[float, float], ...] = ()
+    world_mm: tuple[tuple[float, float], ...] = ()
+    std_mm: tuple[float, ...] = ()
+    """The calibration's 1-sigma uncertainty of each world_mm (RMS distance, mm)."""
+    areas_px: tuple[float, ...] = ()
+
+    @property
+    def objects(self) -> tuple[TrackedObject, ...]:
+        """The frame's objects, ordered by ID (built on each access: the loop itself, and
+        to_json, work from the columns)."""
+        return tuple(
+            map(
+                TrackedObject,
+                self.ids,
+                self.centroids_px,
+                self.world_mm,
+                self.std_mm,
+                self.areas_px,
+            )
+        )
 
     def to_json(self) -> str:
-        """One compact JSON line (no newline): frame, t, and each object's id, px, mm, std_mm."""
-        objs = ",".join(
-            f'{{"id":{o.id},"px":[{o.centroid_px[0]:.3f},{o.centroid_px[1]:.3f}],'
-            f'"mm":[{o.world_mm[0]:.4f},{o.world_mm[1]:.4f}],"std_mm":{o.std_mm:.5f}}}'
-            for o in self.objects
+        """One compact JSON line (no newline): frame, t, and each object's id, px, mm,
+        std_mm (positions to 1e-3 px and 1e-4 mm)."""
+        return _core.frame_json(
+            self.index, self.timestamp, self.ids, self.centroids_px, self.world_mm, self.std_mm
         )
-        return f'{{"frame":{self.index},"t":{self.timestamp:.6f},"objects":[{objs}]}}'
 
 
 @dataclasses.dataclass
@@ -179,6 +202,11 @@ class Tracker:
         self.max_frames = max_frames
         self.max_reconnect_s = max_reconnect_s
         self.detect_options = dict(detect_options or {})
+        unknown = sorted(set(self.detect_options) - _DETECT_OPTIONS)
+        if unknown:
+            raise ValueError(
+                f"unknown detect_options {unknown}; detect_objects takes {sorted(_DETECT_OPTIONS)}"
+            )
         self.stats = LoopStats()
         self._timeout_s = timeout_s
         if isinstance(source, Camera):
@@ -192,8 +220,8 @@ class Tracker:
         # Bounded: the reader runs at most this many frames ahead of the loop.
         self._queue: queue.Queue[tuple[int, float, Frame] | _End] = queue.Queue(maxsize=2)
         self._reader: threading.Thread | None = None
-        self._tracks: dict[int, tuple[F64, int]] = {}  # id -> (last world position, missed)
-        self._next_id = 1
+        self._map = calibration._frame_mapper(self.height_mm)
+        self._tracks = _core.Tracks(self.max_jump_mm, max_missing)
         self._closed = False
         self.last_error: BaseException | None = None
         """The most recent frame-level fault (a corrupt frame, a detector error), for logs."""
@@ -239,31 +267,41 @@ class Tracker:
         stamp = time.time() if timestamp is None else timestamp
         stage = self.stats.stage_s
         t0 = time.perf_counter()
-        found = detect_objects(frame, **self.detect_options)
+        found = _detect(frame, outlines=False, **self.detect_options)
         t1 = time.perf_counter()
         stage["detect"] += t1 - t0
-        if not found:
-            self._age_tracks(set())
-            stage["track"] += time.perf_counter() - t1
-            return FrameResult(index, stamp, ())
-        px = np.array([o.centroid_px for o in found], dtype=np.float64)
-        # One call maps the whole frame (and its uncertainty) in the core.
-        mm, std = self.calibration.image_to_world(px, height=self.height_mm, return_std=True)
+        px = found.centroids
+        if len(px):
+            # One call maps the whole frame (and its uncertainty) in the core.
+            mm, std = self._map(px)
+        else:
+            mm, std = np.zeros((0, 2)), np.zeros(0)
         t2 = time.perf_counter()
         stage["map"] += t2 - t1
-        ids = self._associate(mm)
-        objects = tuple(
-            TrackedObject(
-                int(ids[k]),
-                (float(px[k, 0]), float(px[k, 1])),
-                (float(mm[k, 0]), float(mm[k, 1])),
-                float(std[k]),
-                float(found[k].area_px),
+        ids = self._tracks.update(mm)
+        # By ID, as plain Python values (a few list operations: NumPy calls on ten values
+        # cost more than the values).
+        rows = sorted(
+            zip(
+                ids.tolist(),
+                map(tuple, px.tolist()),
+                map(tuple, mm.tolist()),
+                std.tolist(),
+                found.areas.tolist(),
+                strict=True,
             )
-            for k in np.argsort(ids)
         )
+        columns: list[tuple[Any, ...]] = list(zip(*rows, strict=True)) if rows else [()] * 5
+        result = FrameResult(index, stamp, *columns)
         stage["track"] += time.perf_counter() - t2
-        return FrameResult(index, stamp, objects)
+        return result
+
+    @property
+    def tracks(self) -> dict[int, tuple[float, float]]:
+        """The live tracks: each ID's last world position, mm (an object unseen for up to
+        max_missing frames keeps its track)."""
+        ids, mm = self._tracks.live()
+        return dict(zip(ids.tolist(), map(tuple, mm.tolist()), strict=True))
 
     def stop(self) -> None:
         """Ends the iteration after the frame in hand (safe from a signal handler or another
@@ -370,41 +408,3 @@ class Tracker:
         return None
 
     # -- tracking ----------------------------------------------------------------------------
-
-    def _associate(self, mm: F64) -> NDArray[np.int64]:
-        """Each object's ID: the nearest live track within max_jump_mm, closest pairs first."""
-        ids = np.zeros(len(mm), dtype=np.int64)
-        track_ids = list(self._tracks)
-        seen: set[int] = set()
-        if track_ids:
-            last = np.array([self._tracks[t][0] for t in track_ids])
-            d = np.hypot(mm[:, None, 0] - last[None, :, 0], mm[:, None, 1] - last[None, :, 1])
-            order = np.argsort(d, axis=None)
-            used_obj: set[int] = set()
-            for flat in order:
-                i, j = divmod(int(flat), len(track_ids))
-                if d[i, j] > self.max_jump_mm:
-                    break
-                if i in used_obj or track_ids[j] in seen:
-                    continue
-                ids[i] = track_ids[j]
-                used_obj.add(i)
-                seen.add(track_ids[j])
-        for new in np.flatnonzero(ids == 0):
-            ids[new] = self._next_id
-            self._next_id += 1
-        for i, t in enumerate(ids):
-            self._tracks[int(t)] = (mm[i].copy(), 0)
-            seen.add(int(t))
-        self._age_tracks(seen)
-        return ids
-
-    def _age_tracks(self, seen: set[int]) -> None:
-        for t in list(self._tracks):
-            if t in seen:
-                continue
-            pos, missed = self._tracks[t]
-            if missed + 1 > self.max_missing:
-                del self._tracks[t]
-            else:
-                self._tracks[t] = (pos, missed + 1)

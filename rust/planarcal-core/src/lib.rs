@@ -9,15 +9,20 @@
 //! together. Beyond the homography, `lens` models radial distortion, `plane_model` fits it
 //! jointly with H, `uncertainty` maps pixels through that fit with their covariance, and
 //! `leave_one_out` gives the honest error of each point; `mapper` maps the production loop's
-//! pixels to the plane in batches at memory speed, with the same answers. Everything is f64;
-//! nothing panics on user input.
+//! pixels to the plane in batches at memory speed, with the same answers; `contours` measures a
+//! frame's traced object outlines (`image`, `smooth`, `outline`: moved to the grey-level edge,
+//! sub-pixel)
+//! and `tracking` keeps their IDs from frame to frame.
+//! Geometry is f64; nothing panics on user input.
 
 pub mod a33;
+pub mod contours;
 pub mod correspondences;
 pub mod degeneracy;
 pub mod dlt;
 pub mod error;
 pub mod estimate;
+pub mod image;
 pub mod leave_one_out;
 pub mod lens;
 pub mod mapper;
@@ -28,7 +33,9 @@ pub mod plane_model;
 pub mod refine;
 pub mod reprojection;
 pub mod robust;
+pub mod smooth;
 pub mod threads;
+pub mod tracking;
 pub mod transform;
 pub mod uncertainty;
 

@@ -124,6 +124,23 @@ pub fn f64_array<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<ArrayArg<
     fresh_copy(obj, name, "float64")
 }
 
+/// An 8-bit image argument (uint8 only: other dtypes would be rounded or clipped silently),
+/// borrowed when C-contiguous, else copied into a C-contiguous array.
+pub fn u8_image<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<ArrayArg<'py, u8>> {
+    let Ok(a) = obj.cast::<PyArrayDyn<u8>>() else {
+        let what = real_ndarray(obj, name)
+            .map(|a| format!("dtype {}", a.dtype()))
+            .unwrap_or_else(|_| type_name(obj));
+        return Err(invalid(format!(
+            "{name} must be an 8-bit (uint8) image, got {what}"
+        )));
+    };
+    match borrow(a, name)? {
+        Some(arg) => Ok(arg),
+        None => fresh_copy(obj, name, "uint8"),
+    }
+}
+
 /// float32 input stays float32 (OpenCV's perspectiveTransform keeps the input dtype).
 pub enum Floats<'py> {
     F32(ArrayArg<'py, f32>),

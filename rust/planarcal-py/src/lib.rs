@@ -2,14 +2,15 @@
 //! borrows NumPy buffers without copying, releases the GIL for large work, and returns NumPy
 //! arrays it allocated itself. The public API and its documentation live in Python.
 
+mod contours;
 mod convert;
 mod errors;
 mod estimate;
 mod mapper;
-mod outline;
 mod plane_model;
 mod reprojection;
 mod robust;
+mod tracking;
 mod transform;
 
 use pyo3::prelude::*;
@@ -33,7 +34,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("LensModelError", py.get_type::<errors::LensModelError>())?;
     m.add_class::<plane_model::FittedPlane>()?;
     m.add_class::<mapper::PlaneMapper>()?;
-    m.add_function(wrap_pyfunction!(outline::refine_outline_px, m)?)?;
+    m.add_class::<tracking::Tracks>()?;
+    m.add_function(wrap_pyfunction!(tracking::frame_json, m)?)?;
+    m.add_function(wrap_pyfunction!(contours::measure_contours, m)?)?;
+    m.add_function(wrap_pyfunction!(contours::reading_order, m)?)?;
+    m.add_function(wrap_pyfunction!(contours::median_grey, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::estimate_homography, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::find_homography, m)?)?;
     m.add_function(wrap_pyfunction!(robust::estimate_homography_robust, m)?)?;

@@ -1,0 +1,394 @@
+//! From a frame's traced contours to measured objects, in one pass: the per-frame work of
+//! object location after OpenCV's edge tracing, which in Python cost more than the tracing.
+//!
+//! Each contour (whole-pixel points, as OpenCV's findContours traces them) is kept or dropped
+//! by its enclosed area and by whether it touches the frame's border; a kept contour's points
+//! are moved to the grey-level edge (`outline`, on a sigma-1 smoothing of the object's own
+//! region, `smooth`), and its area and centroid are those of the refined outline. The objects
+//! come in reading order (`reading_order`), which is how their IDs are numbered.
+
+use crate::image::{GreyU8, Rect};
+use crate::outline::{area_centroid, refine_outline, Grey, MIN_POINTS};
+use crate::smooth::gaussian_region;
+use crate::Point;
+
+/// Which contours are objects.
+#[derive(Clone, Copy, Debug)]
+pub struct ContourFilter {
+    /// The enclosed area of the traced contour, px^2, inclusive.
+    pub min_area: f64,
+    pub max_area: f64,
+    /// Keep contours whose bounding box touches the frame's border (their centroid is not
+    /// the object's).
+    pub keep_border: bool,
+    /// Move outlines to the grey-level edge (else the traced pixels are the outline).
+    pub subpixel: bool,
+}
+
+/// One object.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeasuredObject {
+    /// Its contour's position in the input.
+    pub contour: usize,
+    /// Enclosed area, px^2, and its centroid, of the (refined) outline.
+    pub area: f64,
+    pub centroid: Point,
+    /// The traced contour's bounding box: x, y, width, height (OpenCV's boundingRect).
+    pub bbox: [i64; 4],
+    pub outline: Vec<Point>,
+}
+
+/// The region around an object the edge search reads: its bounding box widened by the
+/// search's reach (3 px), the bilinear sample's pixel and the smoothing's support.
+pub const EDGE_PAD: i64 = 8;
+
+/// The objects among `contours` (each a closed polygon of pixel positions), in reading order.
+pub fn measure_contours(
+    image: GreyU8<'_>,
+    contours: &[&[[i32; 2]]],
+    filter: &ContourFilter,
+) -> Vec<MeasuredObject> {
+    // A closed outline of n chain points has a perimeter of at most n * sqrt(2), and no shape
+    // encloses more than perimeter^2 / (4 pi): shorter outlines cannot reach min_area.
+    let shortest =
+        (4.0 * std::f64::consts::PI * filter.min_area.max(0.0)).sqrt() / std::f64::consts::SQRT_2;
+    let candidates: Vec<usize> = (0..contours.len())
+        .filter(|&i| !contours[i].is_empty() && contours[i].len() as f64 >= shortest)
+        .collect();
+    // One thread: the per-frame work is too short for the pool (waking its threads costs as
+    // much as they would save).
+    let mut region = Vec::new();
+    let found: Vec<MeasuredObject> = candidates
+        .into_iter()
+        .filter_map(|i| measure_one(image, i, contours[i], filter, &mut region))
+        .collect();
+    let centroids: Vec<Point> = found.iter().map(|o| o.centroid).collect();
+    let heights: Vec<f64> = found.iter().map(|o| o.bbox[3] as f64).collect();
+    let mut slots: Vec<Option<MeasuredObject>> = found.into_iter().map(Some).collect();
+    reading_order(&centroids, &heights)
+        .into_iter()
+        .filter_map(|i| slots[i].take())
+        .collect()
+}
+
+/// One contour, if it is an object (`region`: the smoothing's buffer, reused).
+fn measure_one(
+    image: GreyU8<'_>,
+    index: usize,
+    contour: &[[i32; 2]],
+    filter: &ContourFilter,
+    region: &mut Vec<f32>,
+) -> Option<MeasuredObject> {
+    let (w, h) = (image.width as i64, image.height as i64);
+    let traced: Vec<Point> = contour.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
+    let (area, centroid) = area_centroid(&traced);
+    if !(filter.min_area <= area && area <= filter.max_area) {
+        return None;
+    }
+    let bbox = bounding_box(contour);
+    let [x, y, bw, bh] = bbox;
+    if !filter.keep_border && (x <= 0 || y <= 0 || x + bw >= w || y + bh >= h) {
+        return None;
+    }
+    let mut object = MeasuredObject {
+        contour: index,
+        area,
+        centroid,
+        bbox,
+        outline: traced,
+    };
+    if filter.subpixel && contour.len() >= MIN_POINTS {
+        refine(image, &mut object, region);
+    }
+    Some(object)
+}
+
+/// Indices of objects in reading order: rows from the top (an object joins a row when its
+/// centre is within half the median object height of the row's first), left to right within
+/// a row; ties keep their given order.
+pub fn reading_order(centroids: &[Point], heights: &[f64]) -> Vec<usize> {
+    let n = centroids.len().min(heights.len());
+    if n == 0 {
+        return Vec::new();
+    }
+    let mut sorted = heights[..n].to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let median = if n % 2 == 1 {
+        sorted[n / 2]
+    } else {
+        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+    };
+    let reach = 0.5 * median;
+    let mut by_y: Vec<usize> = (0..n).collect();
+    by_y.sort_by(|&a, &b| centroids[a][1].total_cmp(&centroids[b][1]));
+    let mut row_of = vec![0usize; n];
+    let (mut row, mut first_y) = (0, centroids[by_y[0]][1]);
+    for &i in &by_y {
+        let y = centroids[i][1];
+        if (y - first_y).abs() > reach {
+            row += 1;
+            first_y = y;
+        }
+        row_of[i] = row;
+    }
+    by_y.sort_by(|&a, &b| {
+        row_of[a]
+            .cmp(&row_of[b])
+            .then(centroids[a][0].total_cmp(&centroids[b][0]))
+    });
+    by_y
+}
+
+/// x, y, width, height of the smallest whole-pixel box holding every point.
+fn bounding_box(contour: &[[i32; 2]]) -> [i64; 4] {
+    let (mut x0, mut y0) = (i64::MAX, i64::MAX);
+    let (mut x1, mut y1) = (i64::MIN, i64::MIN);
+    for p in contour {
+        let (x, y) = (p[0] as i64, p[1] as i64);
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    [x0, y0, x1 - x0 + 1, y1 - y0 + 1]
+}
+
+/// The object's outline moved to its edge, with the area and centroid it then encloses; left
+/// as traced when its region is empty (a contour off the frame).
+fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, region: &mut Vec<f32>) {
+    let (w, h) = (image.width as i64, image.height as i64);
+    let [x, y, bw, bh] = object.bbox;
+    let rect = Rect {
+        x0: (x - EDGE_PAD).clamp(0, w) as usize,
+        y0: (y - EDGE_PAD).clamp(0, h) as usize,
+        x1: (x + bw + EDGE_PAD).clamp(0, w) as usize,
+        y1: (y + bh + EDGE_PAD).clamp(0, h) as usize,
+    };
+    if !gaussian_region(image, rect, region) {
+        return;
+    }
+    let (ox, oy) = (rect.x0 as f64, rect.y0 as f64);
+    let mut local: Vec<Point> = object
+        .outline
+        .iter()
+        .map(|p| [p[0] - ox, p[1] - oy])
+        .collect();
+    let grey = Grey {
+        pixels: region,
+        width: rect.width(),
+        height: rect.height(),
+    };
+    if !refine_outline(grey, &mut local) {
+        return;
+    }
+    let (area, [cx, cy]) = area_centroid(&local);
+    object.area = area;
+    object.centroid = [cx + ox, cy + oy];
+    object.outline = local.iter().map(|p| [p[0] + ox, p[1] + oy]).collect();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A w x h frame with a bright disc of radius r about c on a dark background, its edge a
+    /// smooth ramp.
+    fn disc_frame(w: usize, h: usize, c: Point, r: f64) -> Vec<u8> {
+        let mut px = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let d = (x as f64 - c[0]).hypot(y as f64 - c[1]) - r;
+                px[y * w + x] = (60.0 + 120.0 / (1.0 + (d / 0.7).exp())).round() as u8;
+            }
+        }
+        px
+    }
+
+    /// The pixel chain just outside the disc (8-connected, whole pixels), like a traced
+    /// contour.
+    fn traced_ring(c: Point, r: f64) -> Vec<[i32; 2]> {
+        let mut ring: Vec<[i32; 2]> = (0..400)
+            .map(|k| {
+                let t = k as f64 / 400.0 * std::f64::consts::TAU;
+                [
+                    (c[0] + (r + 1.0) * t.cos()).round() as i32,
+                    (c[1] + (r + 1.0) * t.sin()).round() as i32,
+                ]
+            })
+            .collect();
+        ring.dedup();
+        if ring.first() == ring.last() {
+            ring.pop();
+        }
+        ring
+    }
+
+    fn all() -> ContourFilter {
+        ContourFilter {
+            min_area: 0.0,
+            max_area: f64::INFINITY,
+            keep_border: false,
+            subpixel: true,
+        }
+    }
+
+    #[test]
+    fn a_disc_is_found_at_its_centre_and_its_area() {
+        let (w, h, c, r) = (90, 70, [41.3, 36.6], 14.0);
+        let px = disc_frame(w, h, c, r);
+        let image = GreyU8 {
+            pixels: &px,
+            width: w,
+            height: h,
+        };
+        let ring = traced_ring(c, r);
+        let found = measure_contours(image, &[&ring], &all());
+        assert_eq!(found.len(), 1);
+        let o = &found[0];
+        assert!((o.centroid[0] - c[0]).abs() < 0.03, "{:?}", o.centroid);
+        assert!((o.centroid[1] - c[1]).abs() < 0.03, "{:?}", o.centroid);
+        assert!((o.area / (std::f64::consts::PI * r * r) - 1.0).abs() < 0.03);
+        assert_eq!(o.outline.len(), ring.len());
+        // The traced box, as OpenCV's boundingRect gives it.
+        let xs = ring.iter().map(|p| p[0]);
+        assert_eq!(o.bbox[0], xs.clone().min().unwrap() as i64);
+        assert_eq!(
+            o.bbox[2],
+            (xs.clone().max().unwrap() - xs.min().unwrap() + 1) as i64
+        );
+        // Without the edge search: the traced ring's own area and centroid.
+        let plain = measure_contours(
+            image,
+            &[&ring],
+            &ContourFilter {
+                subpixel: false,
+                ..all()
+            },
+        );
+        let traced: Vec<Point> = ring.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
+        let (area, centre) = area_centroid(&traced);
+        assert_eq!((plain[0].area, plain[0].centroid), (area, centre));
+        assert!(plain[0].area > o.area);
+    }
+
+    #[test]
+    fn a_frame_of_discs_is_each_disc_measured_alone() {
+        // Twelve discs, their region buffer reused from one to the next.
+        let (w, h) = (320, 240);
+        let centres: Vec<Point> = (0..12)
+            .map(|k| [40.3 + 75.0 * (k % 4) as f64, 45.6 + 72.0 * (k / 4) as f64])
+            .collect();
+        let mut px = vec![60u8; w * h];
+        for c in &centres {
+            let one = disc_frame(w, h, *c, 18.0);
+            for (p, q) in px.iter_mut().zip(&one) {
+                *p = (*p).max(*q);
+            }
+        }
+        let image = GreyU8 {
+            pixels: &px,
+            width: w,
+            height: h,
+        };
+        let rings: Vec<Vec<[i32; 2]>> = centres.iter().map(|c| traced_ring(*c, 18.0)).collect();
+        let all_rings: Vec<&[[i32; 2]]> = rings.iter().map(|r| r.as_slice()).collect();
+        let together = measure_contours(image, &all_rings, &all());
+        assert_eq!(together.len(), 12);
+        for o in &together {
+            let alone = measure_contours(image, &[&rings[o.contour]], &all());
+            assert_eq!(
+                (o.area, o.centroid, &o.outline),
+                (alone[0].area, alone[0].centroid, &alone[0].outline)
+            );
+        }
+        // Reading order: rows of four, left to right.
+        let order: Vec<usize> = together.iter().map(|o| o.contour).collect();
+        assert_eq!(order, (0..12).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn contours_are_filtered_by_area_length_and_border() {
+        let (w, h) = (60, 50);
+        let px = vec![100u8; w * h];
+        let image = GreyU8 {
+            pixels: &px,
+            width: w,
+            height: h,
+        };
+        let square = |x: i32, y: i32, s: i32| -> Vec<[i32; 2]> {
+            let mut v = Vec::new();
+            for i in 0..s {
+                v.push([x + i, y]);
+            }
+            for i in 0..s {
+                v.push([x + s, y + i]);
+            }
+            for i in 0..s {
+                v.push([x + s - i, y + s]);
+            }
+            for i in 0..s {
+                v.push([x, y + s - i]);
+            }
+            v
+        };
+        let (inner, touching, small) = (square(10, 10, 20), square(0, 5, 20), square(40, 30, 3));
+        let found = measure_contours(image, &[&touching, &small, &inner, &[]], &all());
+        // The border square and the empty contour are dropped; the small one is kept (below
+        // the big one: second in reading order).
+        assert_eq!(
+            found.iter().map(|o| o.contour).collect::<Vec<_>>(),
+            vec![2, 1]
+        );
+        let keep = ContourFilter {
+            keep_border: true,
+            min_area: 100.0,
+            ..all()
+        };
+        let found = measure_contours(image, &[&touching, &small, &inner], &keep);
+        assert_eq!(
+            found.iter().map(|o| o.contour).collect::<Vec<_>>(),
+            vec![0, 2]
+        );
+        // A flat frame has no edge: the outline stays as traced, area 400.
+        assert_eq!(found[1].area, 400.0);
+        assert_eq!(found[1].centroid, [20.0, 20.0]);
+        let capped = ContourFilter {
+            max_area: 399.0,
+            ..all()
+        };
+        assert_eq!(measure_contours(image, &[&inner], &capped).len(), 0);
+    }
+
+    #[test]
+    fn reading_order_is_rows_from_the_top_then_left_to_right() {
+        // Two rows (heights 10: a row spans 5 px), given out of order.
+        let centroids = [
+            [50.0, 31.0],
+            [10.0, 12.0],
+            [30.0, 9.0],
+            [5.0, 33.0],
+            [70.0, 10.0],
+        ];
+        let heights = [10.0; 5];
+        assert_eq!(reading_order(&centroids, &heights), vec![1, 2, 4, 3, 0]);
+        assert!(reading_order(&[], &[]).is_empty());
+    }
+
+    #[test]
+    fn contours_off_the_frame_do_not_panic() {
+        let px = vec![0u8; 20 * 20];
+        let image = GreyU8 {
+            pixels: &px,
+            width: 20,
+            height: 20,
+        };
+        let far: Vec<[i32; 2]> = (0..40).map(|i| [100 + i % 10, 100 + i / 10]).collect();
+        let keep = ContourFilter {
+            keep_border: true,
+            ..all()
+        };
+        let found = measure_contours(image, &[&far], &keep);
+        assert_eq!(found.len(), 1);
+        assert!(found[0].centroid.iter().all(|v| v.is_finite()));
+    }
+}

@@ -1,0 +1,142 @@
+//! Object IDs from frame to frame: nearest-neighbour association on the plane.
+//!
+//! Each object of a frame takes the ID of the nearest live track within `max_jump` (closest
+//! pairs first, so two objects never share a track); objects left over start new tracks; a
+//! track unseen for more than `max_missing` frames ends. Positions are in the plane's units
+//! (mm), where distances mean the same everywhere in the image.
+
+use crate::Point;
+
+/// The live tracks and the association's limits.
+#[derive(Clone, Debug)]
+pub struct Tracks {
+    max_jump: f64,
+    max_missing: u32,
+    ids: Vec<u64>,
+    positions: Vec<Point>,
+    missed: Vec<u32>,
+    next_id: u64,
+}
+
+impl Tracks {
+    /// No tracks yet; the first ID given is 1. Objects that move more than `max_jump`
+    /// between frames (or whose position is not finite) start new tracks.
+    pub fn new(max_jump: f64, max_missing: u32) -> Self {
+        Tracks {
+            max_jump,
+            max_missing,
+            ids: Vec::new(),
+            positions: Vec::new(),
+            missed: Vec::new(),
+            next_id: 1,
+        }
+    }
+
+    /// The IDs of one frame's objects at `positions` (one per object, in order); the tracks
+    /// then move to this frame's positions, and those not seen age.
+    pub fn update(&mut self, positions: &[Point]) -> Vec<u64> {
+        let (n, m) = (positions.len(), self.ids.len());
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (i, p) in positions.iter().enumerate() {
+            for (j, q) in self.positions.iter().enumerate() {
+                let d = (p[0] - q[0]).hypot(p[1] - q[1]);
+                // NaN compares false: never matched.
+                if d <= self.max_jump {
+                    pairs.push((d, i, j));
+                }
+            }
+        }
+        // Closest first; equal distances in object, then track, order.
+        pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let mut ids = vec![0u64; n];
+        let mut matched = vec![false; m];
+        let mut left = n.min(m);
+        for (_, i, j) in pairs {
+            if left == 0 {
+                break;
+            }
+            if ids[i] != 0 || matched[j] {
+                continue;
+            }
+            ids[i] = self.ids[j];
+            matched[j] = true;
+            left -= 1;
+        }
+        for id in ids.iter_mut().filter(|id| **id == 0) {
+            *id = self.next_id;
+            self.next_id += 1;
+        }
+        // Unseen tracks age (and end past max_missing); this frame's objects are the tracks
+        // seen now.
+        let mut k = 0;
+        for j in 0..m {
+            let missed = self.missed[j] + 1;
+            if matched[j] || missed > self.max_missing {
+                continue;
+            }
+            self.ids[k] = self.ids[j];
+            self.positions[k] = self.positions[j];
+            self.missed[k] = missed;
+            k += 1;
+        }
+        self.ids.truncate(k);
+        self.positions.truncate(k);
+        self.missed.truncate(k);
+        self.ids.extend_from_slice(&ids);
+        self.positions.extend_from_slice(positions);
+        self.missed.resize(self.ids.len(), 0);
+        ids
+    }
+
+    /// The live tracks: (ID, last position), in no particular order.
+    pub fn live(&self) -> impl Iterator<Item = (u64, Point)> + '_ {
+        self.ids.iter().copied().zip(self.positions.iter().copied())
+    }
+
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn objects_keep_their_ids_as_they_move() {
+        let mut t = Tracks::new(5.0, 2);
+        assert_eq!(t.update(&[[0.0, 0.0], [10.0, 0.0]]), vec![1, 2]);
+        // Listed the other way round, each a little further on.
+        assert_eq!(t.update(&[[11.0, 1.0], [1.0, 1.0]]), vec![2, 1]);
+        // One jumps too far: a new track; the old one lives on unseen.
+        assert_eq!(t.update(&[[30.0, 0.0], [2.0, 1.0]]), vec![3, 1]);
+        assert_eq!(t.len(), 3);
+    }
+
+    #[test]
+    fn the_closest_pair_wins_and_unseen_tracks_end() {
+        let mut t = Tracks::new(5.0, 1);
+        t.update(&[[0.0, 0.0]]);
+        // Two candidates for track 1: the nearer takes it.
+        assert_eq!(t.update(&[[3.0, 0.0], [1.0, 0.0]]), vec![2, 1]);
+        t.update(&[]);
+        assert_eq!(t.len(), 2);
+        t.update(&[]);
+        assert!(t.is_empty());
+        // An object that was never matched cannot take an ended track's ID.
+        assert_eq!(t.update(&[[1.0, 0.0]]), vec![3]);
+    }
+
+    #[test]
+    fn non_finite_positions_start_their_own_tracks() {
+        let mut t = Tracks::new(5.0, 3);
+        t.update(&[[0.0, 0.0]]);
+        assert_eq!(t.update(&[[f64::NAN, 0.0]]), vec![2]);
+        let live: Vec<u64> = t.live().map(|(id, _)| id).collect();
+        assert_eq!(live, vec![1, 2]);
+    }
+}

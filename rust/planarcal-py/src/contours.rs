@@ -1,0 +1,191 @@
+//! A frame's traced contours to measured objects (planarcal_core::contours), in one call per
+//! frame with the GIL released: the per-object work of object location.
+
+use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use planarcal_core::contours::{
+    measure_contours as measure, reading_order as order, ContourFilter,
+};
+use planarcal_core::image::{median_grey as median, GreyU8};
+use pyo3::prelude::*;
+use pyo3::types::PyList;
+
+use crate::convert::{f64_array, points2, u8_image};
+use crate::errors::invalid;
+
+/// The objects' values, as NumPy arrays (index, area, centroid, bbox) and a list of outlines.
+type Measured<'py> = (
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyList>,
+);
+
+/// measure_contours(grey, contours, min_area, max_area, keep_border=False, subpixel=True,
+///                  outlines=True)
+/// --
+///
+/// (index, area, centroid, bbox, outlines) of the objects among `contours`, in reading order
+/// (see reading_order), (int32 arrays of
+/// shape (K, 1, 2) or (K, 2), as cv2.findContours traces them in `grey`, an H x W uint8
+/// image): those whose enclosed area is within [min_area, max_area] px^2 and, unless
+/// keep_border, whose bounding box does not touch the image's border. With subpixel, each
+/// outline is moved to the grey-level edge (sub-pixel) and the area and centroid are the
+/// refined outline's. index: int64 (n,), positions in `contours`; area: float64 (n,);
+/// centroid: float64 (n, 2); bbox: int64 (n, 4), x, y, width, height of the traced contour;
+/// outlines: n float64 arrays (K, 2), or an empty list when not asked for (the production
+/// loop needs only the centroids).
+#[pyfunction]
+#[pyo3(signature = (
+    grey, contours, min_area, max_area, keep_border = false, subpixel = true, outlines = true
+))]
+// The Python signature's keywords, one argument each.
+#[allow(clippy::too_many_arguments)]
+pub fn measure_contours<'py>(
+    py: Python<'py>,
+    grey: &Bound<'py, PyAny>,
+    contours: &Bound<'py, PyAny>,
+    min_area: f64,
+    max_area: f64,
+    keep_border: bool,
+    subpixel: bool,
+    outlines: bool,
+) -> PyResult<Measured<'py>> {
+    let img = u8_image(grey, "grey")?;
+    let (height, width) = match img.shape[..] {
+        [h, w] if h > 0 && w > 0 => (h, w),
+        _ => {
+            return Err(invalid(format!(
+                "grey must be a two-dimensional image (H x W), got shape {:?}",
+                img.shape
+            )))
+        }
+    };
+    if min_area.is_nan() || max_area.is_nan() {
+        return Err(invalid(format!(
+            "min_area and max_area must be numbers, got {min_area} and {max_area}"
+        )));
+    }
+    // Contours too short to enclose min_area are skipped before they are borrowed (a real
+    // frame's noise traces many); the core checks the same bound.
+    let shortest =
+        (4.0 * std::f64::consts::PI * min_area.max(0.0)).sqrt() / std::f64::consts::SQRT_2;
+    let mut held = Vec::new();
+    let mut positions = Vec::new();
+    for (i, item) in contours.try_iter()?.enumerate() {
+        let item = item?;
+        let array = item.cast::<PyArrayDyn<i32>>().map_err(|_| {
+            invalid(format!(
+                "contours[{i}] must be an int32 array of shape (K, 1, 2) or (K, 2), as \
+                 cv2.findContours gives"
+            ))
+        })?;
+        let k = match array.shape() {
+            [k, 1, 2] | [k, 2] => *k,
+            shape => {
+                return Err(invalid(format!(
+                    "contours[{i}] must have shape (K, 1, 2) or (K, 2), got {shape:?}"
+                )))
+            }
+        };
+        if (k as f64) < shortest || k == 0 {
+            continue;
+        }
+        let ro = array
+            .try_readonly()
+            .map_err(|e| invalid(format!("contours[{i}] cannot be read: {e}")))?;
+        if ro.as_slice().is_err() {
+            return Err(invalid(format!("contours[{i}] must be C-contiguous")));
+        }
+        held.push(ro);
+        positions.push(i);
+    }
+    let slices: Vec<&[[i32; 2]]> = held
+        .iter()
+        .map(|a| a.as_slice().map(|s| s.as_chunks::<2>().0).unwrap_or(&[]))
+        .collect();
+    let image = GreyU8 {
+        pixels: img.values(),
+        width,
+        height,
+    };
+    let filter = ContourFilter {
+        min_area,
+        max_area,
+        keep_border,
+        subpixel,
+    };
+    let found = py.detach(|| measure(image, &slices, &filter));
+    let n = found.len();
+    let index: Vec<i64> = found.iter().map(|o| positions[o.contour] as i64).collect();
+    let area: Vec<f64> = found.iter().map(|o| o.area).collect();
+    let centroid: Vec<f64> = found.iter().flat_map(|o| o.centroid).collect();
+    let bbox: Vec<i64> = found.iter().flat_map(|o| o.bbox).collect();
+    let arrays = PyList::empty(py);
+    for o in found.iter().filter(|_| outlines) {
+        let flat: Vec<f64> = o.outline.iter().flatten().copied().collect();
+        arrays.append(PyArray1::from_vec(py, flat).reshape([o.outline.len(), 2])?)?;
+    }
+    Ok((
+        PyArray1::from_vec(py, index).into_any(),
+        PyArray1::from_vec(py, area).into_any(),
+        PyArray1::from_vec(py, centroid).reshape([n, 2])?.into_any(),
+        PyArray1::from_vec(py, bbox).reshape([n, 4])?.into_any(),
+        arrays,
+    ))
+}
+
+/// reading_order(centroids, heights)
+/// --
+///
+/// Indices (int64) of objects in reading order: rows from the top (an object joins a row
+/// when its centre is within half the median of `heights` of the row's first), left to right
+/// within a row. centroids: N x 2 px; heights: N.
+#[pyfunction]
+pub fn reading_order<'py>(
+    py: Python<'py>,
+    centroids: &Bound<'py, PyAny>,
+    heights: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let c = points2(centroids, "centroids")?;
+    let h = f64_array(heights, "heights")?;
+    let points = c.as_points();
+    if h.values().len() != points.len() {
+        return Err(invalid(format!(
+            "heights must hold one value per centroid ({}), got {}",
+            points.len(),
+            h.values().len()
+        )));
+    }
+    let indices = order(points, h.values());
+    Ok(PyArray1::from_iter(
+        py,
+        indices.into_iter().map(|i| i as i64),
+    ))
+}
+
+/// median_grey(grey, step=4)
+/// --
+///
+/// The median grey level (an int) of every step-th pixel of every step-th row of `grey`
+/// (H x W uint8).
+#[pyfunction]
+#[pyo3(signature = (grey, step = 4))]
+pub fn median_grey(grey: &Bound<'_, PyAny>, step: usize) -> PyResult<u8> {
+    let img = u8_image(grey, "grey")?;
+    let [height, width] = img.shape[..] else {
+        return Err(invalid(format!(
+            "grey must be a two-dimensional image (H x W), got shape {:?}",
+            img.shape
+        )));
+    };
+    if step == 0 {
+        return Err(invalid("step must be >= 1"));
+    }
+    let image = GreyU8 {
+        pixels: img.values(),
+        width,
+        height,
+    };
+    Ok(median(image, step))
+}

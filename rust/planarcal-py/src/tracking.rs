@@ -1,0 +1,128 @@
+//! Object IDs from frame to frame (planarcal_core::tracking): one call per frame.
+
+use numpy::{PyArray1, PyArrayMethods};
+use planarcal_core::tracking::Tracks as CoreTracks;
+use pyo3::prelude::*;
+
+use crate::convert::points2;
+use crate::errors::invalid;
+
+/// Tracks(max_jump, max_missing)
+/// --
+///
+/// The live tracks of the production loop: nearest-neighbour association on the plane,
+/// closest pairs first, within max_jump; a track unseen for more than max_missing frames
+/// ends.
+#[pyclass(module = "planarcal._core")]
+pub struct Tracks {
+    inner: CoreTracks,
+}
+
+#[pymethods]
+impl Tracks {
+    #[new]
+    fn new(max_jump: f64, max_missing: u64) -> PyResult<Self> {
+        if !(max_jump.is_finite() && max_jump > 0.0) {
+            return Err(invalid(format!(
+                "max_jump must be a finite number > 0, got {max_jump}"
+            )));
+        }
+        Ok(Tracks {
+            // More frames than u32 holds is forever (over two years at 60 fps).
+            inner: CoreTracks::new(max_jump, max_missing.min(u32::MAX as u64) as u32),
+        })
+    }
+
+    /// update(positions)
+    /// --
+    ///
+    /// The IDs (int64, one per row) of one frame's objects at `positions` (N x 2); the tracks
+    /// then move to them.
+    fn update<'py>(
+        &mut self,
+        py: Python<'py>,
+        positions: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<i64>>> {
+        let pts = points2(positions, "positions")?;
+        let ids = self.inner.update(pts.as_points());
+        Ok(PyArray1::from_iter(py, ids.into_iter().map(|id| id as i64)))
+    }
+
+    /// live()
+    /// --
+    ///
+    /// (ids int64 (n,), positions float64 (n, 2)) of the live tracks.
+    fn live<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyArray1<i64>>, Bound<'py, PyAny>)> {
+        let n = self.inner.len();
+        let ids = PyArray1::from_iter(py, self.inner.live().map(|(id, _)| id as i64));
+        let flat: Vec<f64> = self.inner.live().flat_map(|(_, p)| p).collect();
+        Ok((
+            ids,
+            PyArray1::from_vec(py, flat).reshape([n, 2])?.into_any(),
+        ))
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+}
+
+/// frame_json(index, timestamp, ids, centroids_px, world_mm, std_mm)
+/// --
+///
+/// One frame's compact JSON line (no newline): {"frame", "t", "objects": [{"id", "px",
+/// "mm", "std_mm"}, ...]}, positions to 1e-3 px and 1e-4 mm, std to 1e-5 mm, the time to
+/// the microsecond; a value that is not finite is written as null.
+#[pyfunction]
+pub fn frame_json(
+    index: i64,
+    timestamp: f64,
+    ids: Vec<i64>,
+    centroids_px: Vec<(f64, f64)>,
+    world_mm: Vec<(f64, f64)>,
+    std_mm: Vec<f64>,
+) -> PyResult<String> {
+    let n = ids.len();
+    if centroids_px.len() != n || world_mm.len() != n || std_mm.len() != n {
+        return Err(invalid(format!(
+            "one centroid, position and std per id ({n}), got {}, {} and {}",
+            centroids_px.len(),
+            world_mm.len(),
+            std_mm.len()
+        )));
+    }
+    use std::fmt::Write;
+    let mut line = String::with_capacity(48 + 96 * n);
+    let number = |line: &mut String, v: f64, decimals: usize| {
+        // Writing to a String cannot fail.
+        let _ = if v.is_finite() {
+            write!(line, "{v:.decimals$}")
+        } else {
+            write!(line, "null")
+        };
+    };
+    let _ = write!(line, "{{\"frame\":{index},\"t\":");
+    number(&mut line, timestamp, 6);
+    line.push_str(",\"objects\":[");
+    for k in 0..n {
+        if k > 0 {
+            line.push(',');
+        }
+        let _ = write!(line, "{{\"id\":{},\"px\":[", ids[k]);
+        number(&mut line, centroids_px[k].0, 3);
+        line.push(',');
+        number(&mut line, centroids_px[k].1, 3);
+        line.push_str("],\"mm\":[");
+        number(&mut line, world_mm[k].0, 4);
+        line.push(',');
+        number(&mut line, world_mm[k].1, 4);
+        line.push_str("],\"std_mm\":");
+        number(&mut line, std_mm[k], 5);
+        line.push('}');
+    }
+    line.push_str("]}");
+    Ok(line)
+}
