@@ -38,9 +38,10 @@ pub struct MeasuredObject {
     pub outline: Vec<Point>,
 }
 
-/// The region around an object the edge search reads: its bounding box widened by the
-/// search's reach (3 px), the bilinear sample's pixel and the smoothing's support.
-pub const EDGE_PAD: i64 = 8;
+/// The smoothed region around an object the edge search reads: its bounding box widened by
+/// the search's reach (3 px) and the bilinear sample's second pixel, and one more to spare
+/// (the smoothing itself reads the frame's real pixels around the region).
+pub const EDGE_PAD: i64 = 5;
 
 /// The objects among `contours` (each a closed polygon of pixel positions), in reading order.
 pub fn measure_contours(

@@ -92,13 +92,11 @@ unsafe fn refine_outline_avx2(grey: Grey<'_>, outline: &mut [Point]) -> bool {
     })
 }
 
-/// A profile's samples, padded to whole groups of four (the padding repeats the last).
-const PADDED: usize = SAMPLES.div_ceil(4) * 4;
-type Profile = [f64; PADDED];
+type Profile = [f64; SAMPLES];
 
-/// The offsets along the normal of a profile's samples, the padding at REACH.
+/// The offsets along the normal of a profile's samples.
 const OFFSETS: Profile = {
-    let mut s = [REACH; PADDED];
+    let mut s = [0.0; SAMPLES];
     let mut j = 0;
     while j < SAMPLES {
         s[j] = -REACH + j as f64 * STEP;
@@ -107,15 +105,19 @@ const OFFSETS: Profile = {
     s
 };
 
+/// The samples the vectorised profile takes four at a time (the last is taken on its own).
+const GROUPED: usize = SAMPLES - 1;
+const _: () = assert!(GROUPED % 4 == 0);
+
 /// The profile through `p` along `n`, both of whose ends lie inside [0, w - 1) x [0, h - 1).
 #[inline(always)]
 fn profile_inside(grey: Grey<'_>, p: Point, n: [f64; 2], profile: &mut Profile) {
-    for (v, s) in profile.iter_mut().zip(OFFSETS).take(SAMPLES) {
+    for (v, s) in profile.iter_mut().zip(OFFSETS) {
         *v = grey.sample_inside(p[0] + s * n[0], p[1] + s * n[1]);
     }
 }
 
-/// profile_inside, four samples at a time: each sample's two pixel pairs (top and bottom
+/// profile_inside, four samples at a time (the last on its own): each sample's two pixel pairs (top and bottom
 /// row) are gathered as one 64-bit load each, then interpolated in the same operations, in
 /// the same order, as `Grey::sample_inside` (the same bits).
 ///
@@ -135,7 +137,8 @@ unsafe fn profile_inside_avx2(grey: Grey<'_>, p: Point, n: [f64; 2], profile: &m
     let row = _mm256_set1_epi64x(grey.width as i64);
     // [l0 r0 l1 r1 l2 r2 l3 r3] -> [l0 l1 l2 l3 r0 r1 r2 r3]
     let split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
-    for (out, s) in profile.chunks_exact_mut(4).zip(OFFSETS.chunks_exact(4)) {
+    let groups = profile[..GROUPED].chunks_exact_mut(4);
+    for (out, s) in groups.zip(OFFSETS[..GROUPED].chunks_exact(4)) {
         let s = _mm256_loadu_pd(s.as_ptr());
         let x = _mm256_add_pd(px, _mm256_mul_pd(s, nx));
         let y = _mm256_add_pd(py, _mm256_mul_pd(s, ny));
@@ -167,6 +170,8 @@ unsafe fn profile_inside_avx2(grey: Grey<'_>, p: Point, n: [f64; 2], profile: &m
         );
         _mm256_storeu_pd(out.as_mut_ptr(), v);
     }
+    let last = OFFSETS[GROUPED];
+    profile[GROUPED] = grey.sample_inside(p[0] + last * n[0], p[1] + last * n[1]);
 }
 
 #[inline(always)]
@@ -183,7 +188,7 @@ fn refine_outline_body(
         return false;
     }
     let traced = outline.to_vec();
-    let mut profile: Profile = [0.0; PADDED];
+    let mut profile: Profile = [0.0; SAMPLES];
     // Strictly below the last pixel centre, so x0 + 1 and y0 + 1 stay in the image.
     let wmax = (grey.width - 1) as f64;
     let hmax = (grey.height - 1) as f64;
@@ -214,7 +219,7 @@ fn refine_outline_body(
         if within(ax, ay) && within(bx, by) {
             inside(p, [nx, ny], &mut profile);
         } else {
-            for (v, s) in profile.iter_mut().zip(OFFSETS).take(SAMPLES) {
+            for (v, s) in profile.iter_mut().zip(OFFSETS) {
                 *v = grey.sample(p[0] + s * nx, p[1] + s * ny);
             }
         }
