@@ -6,6 +6,7 @@ growth."""
 from __future__ import annotations
 
 import gc
+import logging
 import os
 import threading
 from pathlib import Path
@@ -144,6 +145,7 @@ class FlakyCamera:
             raise CameraError(f"{source}: no such device (injected)")
         self.inner = Camera(source, timeout_s=timeout_s, color=color)
         self.source = source
+        self.label = str(source)
         self.live = True
         self.ended = False
         self.closed = False
@@ -193,6 +195,59 @@ def test_giving_up_on_a_source_that_stays_away(calibration, video, monkeypatch) 
     with pytest.raises(CameraError, match="gave up reopening"):
         list(t)
     assert t.stats.frames == 6
+
+
+class LateCamera:
+    """A live stream that is not there for its first `absent` openings, then is: a real
+    Camera on the test video behind a made-up URL (fault injection at start)."""
+
+    absent = 3
+    opened = 0
+    target = ""
+
+    def __init__(self, source: Any, *, timeout_s: float = 5.0, color: bool = True) -> None:
+        LateCamera.opened += 1
+        if LateCamera.opened <= LateCamera.absent:
+            raise CameraError(f"{source}: connection refused (injected)")
+        self.inner = Camera(LateCamera.target, timeout_s=timeout_s, color=color)
+        self.source = self.label = source
+        self.live = True
+        self.ended = self.closed = False
+
+    def read(self) -> Any:
+        try:
+            return self.inner.read()
+        except CameraError:
+            self.ended = self.inner.ended
+            raise
+
+    def close(self) -> None:
+        self.closed = True
+        self.inner.close()
+
+
+def test_a_stream_absent_at_start_is_waited_for(calibration, video, monkeypatch, caplog, tmp_path):  # type: ignore[no-untyped-def]
+    path, truth, _ = video
+    LateCamera.opened, LateCamera.target = 0, str(path)
+    monkeypatch.setattr(tracker_module, "Camera", LateCamera)
+    source = "rtsp://camera.invalid/parts"
+    with (
+        caplog.at_level(logging.WARNING, logger="planarcal.tracker"),
+        Tracker(calibration, source, max_frames=5) as t,
+    ):
+        results = list(t)
+    assert len(results) == 5 and LateCamera.opened == 4
+    # Waiting at start is not a reconnection; each failed attempt is logged.
+    assert t.stats.reconnects == 0
+    assert "waiting for it" in caplog.text and caplog.text.count("retrying in") == 2
+    assert "open after" in caplog.text
+    for r in results:
+        gaps = [np.hypot(*(truth - np.array(o.world_mm)).T.reshape(2, -1)).min() for o in r.objects]
+        assert max(gaps) < 0.15
+    # A file that is not there is a mistake, not a camera still booting: it fails at once.
+    monkeypatch.undo()
+    with pytest.raises(CameraError):
+        Tracker(calibration, tmp_path / "missing.mp4")
 
 
 def test_stop_from_another_thread_ends_the_loop_cleanly(calibration, video) -> None:  # type: ignore[no-untyped-def]

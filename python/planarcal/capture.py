@@ -604,6 +604,12 @@ class Camera:
         read), False for a file or folder (read at the reader's pace, nothing lost)."""
         return self._kind in ("device", "stream")
 
+    @property
+    def label(self) -> str:
+        """What the camera reads, for messages ("camera device 0", a stream's URL with any
+        password hidden, a file's path)."""
+        return self._label
+
     def __repr__(self) -> str:
         state = "closed" if self._closed else "open"
         w, h = self._resolution

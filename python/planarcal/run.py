@@ -13,6 +13,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import logging
 import signal
 import sys
 import time
@@ -116,6 +117,14 @@ def main(args: argparse.Namespace) -> int:
     from planarcal.calibration import Calibration
     from planarcal.outputs import open_output
 
+    # The tracker's fault log (a source lost and reopened, frames skipped) goes to stderr, like
+    # the summary, unless the application set up logging itself.
+    log = logging.getLogger("planarcal")
+    if not log.handlers and not logging.getLogger().handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("planarcal run: %(message)s"))
+        log.addHandler(handler)
+        log.setLevel(logging.INFO)
     calibration = Calibration.load(args.calibration)
     source: int | str = int(args.source) if args.source.isdigit() else args.source
     detect: dict[str, Any] = {}

@@ -10,10 +10,14 @@ It does not stop on a bad frame:
 
 * a frame that cannot be decoded, or one of the wrong size, is counted (``corrupt``) and
   skipped;
-* a camera or stream that stops delivering (unplugged, a stalled network) is reopened with
-  exponential back-off (``reconnects``), for as long as it takes, unless
-  ``max_reconnect_s`` says otherwise;
+* a camera or stream that stops delivering (unplugged, a stalled network), or that is not
+  there yet when the tracker starts (still booting), is opened again with exponential
+  back-off (``reconnects``), for as long as it takes, unless ``max_reconnect_s`` says
+  otherwise (a file or folder that cannot be opened fails at once);
 * a frame whose processing fails (a detector error) is counted (``failed``) and skipped.
+
+Each fault is logged (logger ``planarcal.tracker``; repeated faults at their 1st, 2nd, 4th,
+8th, ... occurrence, so a stream of bad frames does not flood the log).
 
 Reading runs on its own thread, a couple of frames ahead, so decoding overlaps with
 processing (OpenCV releases the GIL while it decodes; the core releases it while it maps).
@@ -30,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import logging
 import math
 import os
 import queue
@@ -50,6 +55,8 @@ from planarcal.objects import _detect, detect_objects
 F64 = NDArray[np.float64]
 
 __all__ = ["FrameResult", "LoopStats", "TrackedObject", "Tracker"]
+
+_log = logging.getLogger("planarcal.tracker")
 
 # The options detect_objects takes (its keyword arguments).
 _DETECT_OPTIONS = frozenset(inspect.signature(detect_objects).parameters) - {"image"}
@@ -214,8 +221,17 @@ class Tracker:
             self._spec: int | str | os.PathLike[str] = source.source
         else:
             self._spec = source
-            self._camera = Camera(source, timeout_s=timeout_s, color=False)
-        self._live = self._camera.live
+            try:
+                self._camera = Camera(source, timeout_s=timeout_s, color=False)
+            except CameraError as e:
+                if not _live_spec(source):
+                    raise
+                # A camera or stream that is not there yet: the reader waits for it as for
+                # one that dropped out.
+                _log.warning("%s; waiting for it", e)
+                self._camera = None
+        self._live = _live_spec(self._spec) if self._camera is None else self._camera.live
+        self._ever_opened = self._camera is not None
         self._stop = threading.Event()
         # Bounded: the reader runs at most this many frames ahead of the loop.
         self._queue: queue.Queue[tuple[int, float, Frame] | _End] = queue.Queue(maxsize=2)
@@ -255,6 +271,7 @@ class Tracker:
                 except (ValueError, ArithmeticError) as e:  # a frame the detector chokes on
                     self.stats.failed += 1
                     self.last_error = e
+                    _log_fault("frame %d failed: %s", self.stats.failed, index, e)
                     continue
                 self.stats.frames += 1
                 self.stats.objects += len(result.objects)
@@ -374,6 +391,7 @@ class Tracker:
                     # A frame that cannot be decoded or has the wrong size: skip it.
                     self.stats.corrupt += 1
                     self.last_error = e
+                    _log_fault("frame %d skipped: %s", self.stats.corrupt, index, e)
                     index += 1
                     continue
                 self._put((index, time.time(), frame))
@@ -390,10 +408,16 @@ class Tracker:
         while not self._stop.is_set():
             try:
                 self._camera = Camera(self._spec, timeout_s=self._timeout_s, color=False)
-                self.stats.reconnects += 1
+                again = "again " if self._ever_opened else ""
+                self.stats.reconnects += self._ever_opened
+                self._ever_opened = True
+                _log.warning(
+                    "%s open %safter %.1f s", self._camera.label, again, time.monotonic() - start
+                )
                 return self._camera
             except CameraError as e:
                 waited = time.monotonic() - start
+                _log.warning("%s; retrying in %.1f s", e, delay)
                 if self.max_reconnect_s is not None and waited >= self.max_reconnect_s:
                     self._put(
                         _End(
@@ -408,3 +432,16 @@ class Tracker:
         return None
 
     # -- tracking ----------------------------------------------------------------------------
+
+
+def _live_spec(source: object) -> bool:
+    """A camera device index or a stream's URL (as Camera tells them from paths)."""
+    if isinstance(source, bool):
+        return False
+    return isinstance(source, int | np.integer) or (isinstance(source, str) and "://" in source)
+
+
+def _log_fault(message: str, count: int, *args: object) -> None:
+    """Logs the 1st, 2nd, 4th, 8th, ... fault of a kind (with how many so far)."""
+    if count & (count - 1) == 0:
+        _log.warning(message + " (%d so far)", *args, count)
