@@ -174,12 +174,12 @@ def measure_contours(
 def frame_json(
     index: int,
     timestamp: float,
-    ids: Sequence[int],
-    centroids_px: Sequence[tuple[float, float]],
-    world_mm: Sequence[tuple[float, float]],
-    std_mm: Sequence[float],
+    ids: NDArray[np.int64],
+    centroids_px: ArrayLike,
+    world_mm: ArrayLike,
+    std_mm: ArrayLike,
 ) -> str: ...
-def median_grey(grey: ArrayLike, step: int = 4) -> int: ...
+def median_grey(grey: ArrayLike, row_step: int = 16, col_step: int = 2) -> int: ...
 def reading_order(centroids: ArrayLike, heights: ArrayLike) -> NDArray[np.int64]: ...
 
 @final

@@ -75,39 +75,43 @@ class TrackedObject:
     area_px: float
 
 
-@dataclasses.dataclass(frozen=True, slots=True)
+@dataclasses.dataclass(frozen=True, slots=True, eq=False)
 class FrameResult:
-    """One frame's objects, by column (ordered by ID); ``objects`` gives them one by one."""
+    """One frame's objects: arrays with a row per object, in the detector's reading order
+    (rows from the top); ``objects`` and the JSON line give them by ID."""
 
     index: int
     """0-based position of the frame in the source (skipped frames keep their numbers)."""
     timestamp: float
     """When the frame was read, seconds since the epoch (time.time())."""
-    ids: tuple[int, ...] = ()
-    centroids_px: tuple[tuple[float, float], ...] = ()
-    world_mm: tuple[tuple[float, float], ...] = ()
-    std_mm: tuple[float, ...] = ()
+    ids: NDArray[np.int64]
+    centroids_px: F64
+    """(n, 2) px."""
+    world_mm: F64
+    """(n, 2) mm on the plane."""
+    std_mm: F64
     """The calibration's 1-sigma uncertainty of each world_mm (RMS distance, mm)."""
-    areas_px: tuple[float, ...] = ()
+    areas_px: F64
 
     @property
     def objects(self) -> tuple[TrackedObject, ...]:
         """The frame's objects, ordered by ID (built on each access: the loop itself, and
-        to_json, work from the columns)."""
+        to_json, work from the arrays)."""
+        order = np.argsort(self.ids, kind="stable")
         return tuple(
             map(
                 TrackedObject,
-                self.ids,
-                self.centroids_px,
-                self.world_mm,
-                self.std_mm,
-                self.areas_px,
+                self.ids[order].tolist(),
+                map(tuple, self.centroids_px[order].tolist()),
+                map(tuple, self.world_mm[order].tolist()),
+                self.std_mm[order].tolist(),
+                self.areas_px[order].tolist(),
             )
         )
 
     def to_json(self) -> str:
         """One compact JSON line (no newline): frame, t, and each object's id, px, mm,
-        std_mm (positions to 1e-3 px and 1e-4 mm)."""
+        std_mm, by ID (positions to 1e-3 px and 1e-4 mm)."""
         return _core.frame_json(
             self.index, self.timestamp, self.ids, self.centroids_px, self.world_mm, self.std_mm
         )
@@ -296,20 +300,7 @@ class Tracker:
         t2 = time.perf_counter()
         stage["map"] += t2 - t1
         ids = self._tracks.update(mm)
-        # By ID, as plain Python values (a few list operations: NumPy calls on ten values
-        # cost more than the values).
-        rows = sorted(
-            zip(
-                ids.tolist(),
-                map(tuple, px.tolist()),
-                map(tuple, mm.tolist()),
-                std.tolist(),
-                found.areas.tolist(),
-                strict=True,
-            )
-        )
-        columns: list[tuple[Any, ...]] = list(zip(*rows, strict=True)) if rows else [()] * 5
-        result = FrameResult(index, stamp, *columns)
+        result = FrameResult(index, stamp, ids, px, mm, std, found.areas)
         stage["track"] += time.perf_counter() - t2
         return result
 

@@ -107,7 +107,7 @@ const OFFSETS: Profile = {
 
 /// The samples the vectorised profile takes four at a time (the last is taken on its own).
 const GROUPED: usize = SAMPLES - 1;
-const _: () = assert!(GROUPED % 4 == 0);
+const _: () = assert!(GROUPED.is_multiple_of(4));
 
 /// The profile through `p` along `n`, both of whose ends lie inside [0, w - 1) x [0, h - 1).
 #[inline(always)]

@@ -164,14 +164,14 @@ pub fn reading_order<'py>(
     ))
 }
 
-/// median_grey(grey, step=4)
+/// median_grey(grey, row_step=16, col_step=2)
 /// --
 ///
-/// The median grey level (an int) of every step-th pixel of every step-th row of `grey`
-/// (H x W uint8).
+/// The median grey level (an int) of every col_step-th pixel of every row_step-th row of
+/// `grey` (H x W uint8).
 #[pyfunction]
-#[pyo3(signature = (grey, step = 4))]
-pub fn median_grey(grey: &Bound<'_, PyAny>, step: usize) -> PyResult<u8> {
+#[pyo3(signature = (grey, row_step = 16, col_step = 2))]
+pub fn median_grey(grey: &Bound<'_, PyAny>, row_step: usize, col_step: usize) -> PyResult<u8> {
     let img = u8_image(grey, "grey")?;
     let [height, width] = img.shape[..] else {
         return Err(invalid(format!(
@@ -179,13 +179,13 @@ pub fn median_grey(grey: &Bound<'_, PyAny>, step: usize) -> PyResult<u8> {
             img.shape
         )));
     };
-    if step == 0 {
-        return Err(invalid("step must be >= 1"));
+    if row_step == 0 || col_step == 0 {
+        return Err(invalid("row_step and col_step must be >= 1"));
     }
     let image = GreyU8 {
         pixels: img.values(),
         width,
         height,
     };
-    Ok(median(image, step))
+    Ok(median(image, row_step, col_step))
 }

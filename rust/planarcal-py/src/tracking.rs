@@ -1,10 +1,10 @@
 //! Object IDs from frame to frame (planarcal_core::tracking): one call per frame.
 
-use numpy::{PyArray1, PyArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
 use planarcal_core::tracking::Tracks as CoreTracks;
 use pyo3::prelude::*;
 
-use crate::convert::points2;
+use crate::convert::{f64_array, points2};
 use crate::errors::invalid;
 
 /// Tracks(max_jump, max_missing)
@@ -74,26 +74,36 @@ impl Tracks {
 /// --
 ///
 /// One frame's compact JSON line (no newline): {"frame", "t", "objects": [{"id", "px",
-/// "mm", "std_mm"}, ...]}, positions to 1e-3 px and 1e-4 mm, std to 1e-5 mm, the time to
-/// the microsecond; a value that is not finite is written as null.
+/// "mm", "std_mm"}, ...]}, the objects by ID (ids: int64 (n,); centroids_px, world_mm:
+/// n x 2; std_mm: n), positions to 1e-3 px and 1e-4 mm, std to 1e-5 mm, the time to the
+/// microsecond; a value that is not finite is written as null.
 #[pyfunction]
 pub fn frame_json(
     index: i64,
     timestamp: f64,
-    ids: Vec<i64>,
-    centroids_px: Vec<(f64, f64)>,
-    world_mm: Vec<(f64, f64)>,
-    std_mm: Vec<f64>,
+    ids: PyReadonlyArray1<'_, i64>,
+    centroids_px: &Bound<'_, PyAny>,
+    world_mm: &Bound<'_, PyAny>,
+    std_mm: &Bound<'_, PyAny>,
 ) -> PyResult<String> {
+    let ids = ids.as_slice().map_err(|e| invalid(format!("ids: {e}")))?;
+    let (px, mm) = (
+        points2(centroids_px, "centroids_px")?,
+        points2(world_mm, "world_mm")?,
+    );
+    let std = f64_array(std_mm, "std_mm")?;
+    let (px, mm, std) = (px.as_points(), mm.as_points(), std.values());
     let n = ids.len();
-    if centroids_px.len() != n || world_mm.len() != n || std_mm.len() != n {
+    if px.len() != n || mm.len() != n || std.len() != n {
         return Err(invalid(format!(
             "one centroid, position and std per id ({n}), got {}, {} and {}",
-            centroids_px.len(),
-            world_mm.len(),
-            std_mm.len()
+            px.len(),
+            mm.len(),
+            std.len()
         )));
     }
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&k| ids[k]);
     use std::fmt::Write;
     let mut line = String::with_capacity(48 + 96 * n);
     let number = |line: &mut String, v: f64, decimals: usize| {
@@ -107,20 +117,20 @@ pub fn frame_json(
     let _ = write!(line, "{{\"frame\":{index},\"t\":");
     number(&mut line, timestamp, 6);
     line.push_str(",\"objects\":[");
-    for k in 0..n {
-        if k > 0 {
+    for (i, &k) in order.iter().enumerate() {
+        if i > 0 {
             line.push(',');
         }
         let _ = write!(line, "{{\"id\":{},\"px\":[", ids[k]);
-        number(&mut line, centroids_px[k].0, 3);
+        number(&mut line, px[k][0], 3);
         line.push(',');
-        number(&mut line, centroids_px[k].1, 3);
+        number(&mut line, px[k][1], 3);
         line.push_str("],\"mm\":[");
-        number(&mut line, world_mm[k].0, 4);
+        number(&mut line, mm[k][0], 4);
         line.push(',');
-        number(&mut line, world_mm[k].1, 4);
+        number(&mut line, mm[k][1], 4);
         line.push_str("],\"std_mm\":");
-        number(&mut line, std_mm[k], 5);
+        number(&mut line, std[k], 5);
         line.push('}');
     }
     line.push_str("]}");
