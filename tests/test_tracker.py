@@ -197,12 +197,11 @@ def test_giving_up_on_a_source_that_stays_away(calibration, video, monkeypatch) 
     assert t.stats.frames == 6
 
 
-class LateCamera:
-    """A live stream that is not there for its first `absent` openings, then is: a real
-    Camera on the test video behind a made-up URL (fault injection at start)."""
+class LateCamera(FlakyCamera):
+    """A live stream that is not there for its first `absent` openings, then is (and stays):
+    a real Camera on the test video behind a made-up URL (fault injection at start)."""
 
     absent = 3
-    opened = 0
     target = ""
 
     def __init__(self, source: Any, *, timeout_s: float = 5.0, color: bool = True) -> None:
@@ -213,17 +212,7 @@ class LateCamera:
         self.source = self.label = source
         self.live = True
         self.ended = self.closed = False
-
-    def read(self) -> Any:
-        try:
-            return self.inner.read()
-        except CameraError:
-            self.ended = self.inner.ended
-            raise
-
-    def close(self) -> None:
-        self.closed = True
-        self.inner.close()
+        self.fail_after, self.reads = 10**9, 0
 
 
 def test_a_stream_absent_at_start_is_waited_for(calibration, video, monkeypatch, caplog, tmp_path):  # type: ignore[no-untyped-def]
