@@ -20,7 +20,8 @@ Each fault is logged (logger ``planarcal.tracker``; repeated faults at their 1st
 8th, ... occurrence, so a stream of bad frames does not flood the log).
 
 Reading runs on its own thread, a couple of frames ahead, so decoding overlaps with
-processing (OpenCV releases the GIL while it decodes; the core releases it while it maps).
+processing (OpenCV releases the GIL while it decodes and filters; the core releases it while
+it measures a frame's outlines, the bulk of its work).
 With a live source, frames that arrive while the loop is still busy with an older one are
 dropped, the oldest first, and counted (``dropped``): a robot wants the newest positions.
 With a file or folder nothing is dropped: the reader waits for the loop.
