@@ -58,10 +58,10 @@ pub fn measure_contours(
         .collect();
     // One thread: the per-frame work is too short for the pool (waking its threads costs as
     // much as they would save).
-    let mut region = Vec::new();
+    let mut buffers = (Vec::new(), Vec::new());
     let found: Vec<MeasuredObject> = candidates
         .into_iter()
-        .filter_map(|i| measure_one(image, i, contours[i], filter, &mut region))
+        .filter_map(|i| measure_one(image, i, contours[i], filter, &mut buffers))
         .collect();
     let centroids: Vec<Point> = found.iter().map(|o| o.centroid).collect();
     let heights: Vec<f64> = found.iter().map(|o| o.bbox[3] as f64).collect();
@@ -72,13 +72,13 @@ pub fn measure_contours(
         .collect()
 }
 
-/// One contour, if it is an object (`region`: the smoothing's buffer, reused).
+/// One contour, if it is an object (`buffers`: the smoothing's, reused from one to the next).
 fn measure_one(
     image: GreyU8<'_>,
     index: usize,
     contour: &[[i32; 2]],
     filter: &ContourFilter,
-    region: &mut Vec<f32>,
+    buffers: &mut (Vec<f32>, Vec<f32>),
 ) -> Option<MeasuredObject> {
     let (w, h) = (image.width as i64, image.height as i64);
     let traced: Vec<Point> = contour.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
@@ -99,7 +99,7 @@ fn measure_one(
         outline: traced,
     };
     if filter.subpixel && contour.len() >= MIN_POINTS {
-        refine(image, &mut object, region);
+        refine(image, &mut object, buffers);
     }
     Some(object)
 }
@@ -156,7 +156,8 @@ fn bounding_box(contour: &[[i32; 2]]) -> [i64; 4] {
 
 /// The object's outline moved to its edge, with the area and centroid it then encloses; left
 /// as traced when its region is empty (a contour off the frame).
-fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, region: &mut Vec<f32>) {
+fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, buffers: &mut (Vec<f32>, Vec<f32>)) {
+    let (region, scratch) = buffers;
     let (w, h) = (image.width as i64, image.height as i64);
     let [x, y, bw, bh] = object.bbox;
     let rect = Rect {
@@ -165,7 +166,7 @@ fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, region: &mut Vec<f32>)
         x1: (x + bw + EDGE_PAD).clamp(0, w) as usize,
         y1: (y + bh + EDGE_PAD).clamp(0, h) as usize,
     };
-    if !gaussian_region(image, rect, region) {
+    if !gaussian_region(image, rect, region, scratch) {
         return;
     }
     let (ox, oy) = (rect.x0 as f64, rect.y0 as f64);

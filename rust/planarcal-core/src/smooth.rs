@@ -39,28 +39,43 @@ fn reflect_101(i: isize, n: usize) -> usize {
 }
 
 /// The rectangle `rect` of `image`, smoothed by a Gaussian of sigma 1 px, into `out` (resized
-/// to rect.width() x rect.height(), row-major). `rect` must lie inside the image and the
-/// image's pixels must number width x height; otherwise `out` is left empty and false
-/// returned.
-pub fn gaussian_region(image: GreyU8<'_>, rect: Rect, out: &mut Vec<f32>) -> bool {
+/// to rect.width() x rect.height(), row-major); `scratch` holds the first pass (both buffers
+/// are reused from call to call). `rect` must lie inside the image and the image's pixels
+/// must number width x height; otherwise `out` is left empty and false returned.
+pub fn gaussian_region(
+    image: GreyU8<'_>,
+    rect: Rect,
+    out: &mut Vec<f32>,
+    scratch: &mut Vec<f32>,
+) -> bool {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { gaussian_region_avx2(image, rect, out) };
+        return unsafe { gaussian_region_avx2(image, rect, out, scratch) };
     }
-    gaussian_region_body(image, rect, out)
+    gaussian_region_body(image, rect, out, scratch)
 }
 
 /// The same code compiled for AVX2: eight lanes a multiply-add instead of four. No FMA: the
 /// bits are the plain build's.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn gaussian_region_avx2(image: GreyU8<'_>, rect: Rect, out: &mut Vec<f32>) -> bool {
-    gaussian_region_body(image, rect, out)
+unsafe fn gaussian_region_avx2(
+    image: GreyU8<'_>,
+    rect: Rect,
+    out: &mut Vec<f32>,
+    scratch: &mut Vec<f32>,
+) -> bool {
+    gaussian_region_body(image, rect, out, scratch)
 }
 
 #[inline(always)]
-fn gaussian_region_body(image: GreyU8<'_>, rect: Rect, out: &mut Vec<f32>) -> bool {
+fn gaussian_region_body(
+    image: GreyU8<'_>,
+    rect: Rect,
+    out: &mut Vec<f32>,
+    across: &mut Vec<f32>,
+) -> bool {
     out.clear();
     let (w, h) = (image.width, image.height);
     if image.pixels.len() != w * h
@@ -75,7 +90,8 @@ fn gaussian_region_body(image: GreyU8<'_>, rect: Rect, out: &mut Vec<f32>) -> bo
     let (rw, rh) = (rect.width(), rect.height());
     // The horizontal pass over the rectangle's rows and RADIUS rows either side.
     let mut line = vec![0.0f32; rw + 2 * RADIUS];
-    let mut across = vec![0.0f32; rw * (rh + 2 * RADIUS)];
+    // Every value of both buffers is written below: resizing them is enough.
+    across.resize(rw * (rh + 2 * RADIUS), 0.0);
     let inner = rect.x0 >= RADIUS && rect.x1 + RADIUS <= w;
     for (r, row_out) in across.chunks_exact_mut(rw).enumerate() {
         let y = reflect_101(rect.y0 as isize + r as isize - RADIUS as isize, h);
@@ -187,7 +203,7 @@ mod tests {
                 y1: 17,
             },
         ] {
-            assert!(gaussian_region(image, rect, &mut out));
+            assert!(gaussian_region(image, rect, &mut out, &mut Vec::new()));
             let want = reference(image, rect);
             assert_eq!(out.len(), want.len());
             for (a, b) in out.iter().zip(&want) {
@@ -198,6 +214,7 @@ mod tests {
 
     #[test]
     fn a_flat_frame_stays_flat_and_bad_rectangles_are_refused() {
+        let mut scratch = Vec::new();
         let px = vec![77u8; 12 * 9];
         let image = GreyU8 {
             pixels: &px,
@@ -213,7 +230,8 @@ mod tests {
                 x1: 12,
                 y1: 9
             },
-            &mut out
+            &mut out,
+            &mut scratch
         ));
         assert!(out.iter().all(|v| (v - 77.0).abs() < 1e-4));
         assert!(!gaussian_region(
@@ -224,7 +242,8 @@ mod tests {
                 x1: 13,
                 y1: 9
             },
-            &mut out
+            &mut out,
+            &mut scratch
         ));
         assert!(!gaussian_region(
             image,
@@ -234,7 +253,8 @@ mod tests {
                 x1: 3,
                 y1: 9
             },
-            &mut out
+            &mut out,
+            &mut scratch
         ));
         assert!(out.is_empty());
         let one = [9u8];
@@ -251,7 +271,8 @@ mod tests {
                 x1: 1,
                 y1: 1
             },
-            &mut out
+            &mut out,
+            &mut scratch
         ));
         assert!((out[0] - 9.0).abs() < 1e-4);
     }
