@@ -43,16 +43,20 @@ pub struct MeasuredObject {
 /// (the smoothing itself reads the frame's real pixels around the region).
 pub const EDGE_PAD: i64 = 5;
 
+/// The fewest chain points an outline enclosing `min_area` px^2 can have: a closed outline
+/// of n points has a perimeter of at most n * sqrt(2), and no shape encloses more than
+/// perimeter^2 / (4 pi). Shorter contours are skipped unread.
+pub fn fewest_points(min_area: f64) -> f64 {
+    (4.0 * std::f64::consts::PI * min_area.max(0.0)).sqrt() / std::f64::consts::SQRT_2
+}
+
 /// The objects among `contours` (each a closed polygon of pixel positions), in reading order.
 pub fn measure_contours(
     image: GreyU8<'_>,
     contours: &[&[[i32; 2]]],
     filter: &ContourFilter,
 ) -> Vec<MeasuredObject> {
-    // A closed outline of n chain points has a perimeter of at most n * sqrt(2), and no shape
-    // encloses more than perimeter^2 / (4 pi): shorter outlines cannot reach min_area.
-    let shortest =
-        (4.0 * std::f64::consts::PI * filter.min_area.max(0.0)).sqrt() / std::f64::consts::SQRT_2;
+    let shortest = fewest_points(filter.min_area);
     let candidates: Vec<usize> = (0..contours.len())
         .filter(|&i| !contours[i].is_empty() && contours[i].len() as f64 >= shortest)
         .collect();
@@ -169,24 +173,24 @@ fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, buffers: &mut (Vec<f32
     if !gaussian_region(image, rect, region, scratch) {
         return;
     }
+    // The search and the centroid work in the region's coordinates (whole-pixel shifts,
+    // exact), in place.
     let (ox, oy) = (rect.x0 as f64, rect.y0 as f64);
-    let mut local: Vec<Point> = object
-        .outline
-        .iter()
-        .map(|p| [p[0] - ox, p[1] - oy])
-        .collect();
+    let shift = |outline: &mut [Point], dx: f64, dy: f64| {
+        outline.iter_mut().for_each(|p| *p = [p[0] + dx, p[1] + dy]);
+    };
+    shift(&mut object.outline, -ox, -oy);
     let grey = Grey {
         pixels: region,
         width: rect.width(),
         height: rect.height(),
     };
-    if !refine_outline(grey, &mut local) {
-        return;
+    if refine_outline(grey, &mut object.outline) {
+        let (area, [cx, cy]) = area_centroid(&object.outline);
+        object.area = area;
+        object.centroid = [cx + ox, cy + oy];
     }
-    let (area, [cx, cy]) = area_centroid(&local);
-    object.area = area;
-    object.centroid = [cx + ox, cy + oy];
-    object.outline = local.iter().map(|p| [p[0] + ox, p[1] + oy]).collect();
+    shift(&mut object.outline, ox, oy);
 }
 
 #[cfg(test)]

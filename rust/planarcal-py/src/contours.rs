@@ -3,7 +3,7 @@
 
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use planarcal_core::contours::{
-    measure_contours as measure, reading_order as order, ContourFilter,
+    fewest_points, measure_contours as measure, reading_order as order, ContourFilter,
 };
 use planarcal_core::image::{median_grey as median, GreyU8};
 use pyo3::prelude::*;
@@ -67,9 +67,8 @@ pub fn measure_contours<'py>(
         )));
     }
     // Contours too short to enclose min_area are skipped before they are borrowed (a real
-    // frame's noise traces many); the core checks the same bound.
-    let shortest =
-        (4.0 * std::f64::consts::PI * min_area.max(0.0)).sqrt() / std::f64::consts::SQRT_2;
+    // frame's noise traces many).
+    let shortest = fewest_points(min_area);
     let mut held = Vec::new();
     let mut positions = Vec::new();
     for (i, item) in contours.try_iter()?.enumerate() {
