@@ -337,3 +337,22 @@ def test_intrinsics_then_objects_of_known_height(tmp_path: Path) -> None:
         auto.image_to_world(px, height=20.0)
     bad = _run("intrinsics", views[0], *BOARD_ARGS, "-o", tmp_path / "x.yaml")
     assert bad.returncode == 1 and "at least 3" in bad.stderr
+
+
+def test_board_arguments_default_per_command() -> None:
+    from planarcal.cli import build_parser
+
+    parser = build_parser()
+    # Printing: an origin marker unless told otherwise; the diameter is chosen by the command.
+    printing = parser.parse_args(["board", "-o", "b.svg"])
+    assert printing.origin_marker is True and printing.diameter is None
+    assert printing.layout == "symmetric"
+    assert parser.parse_args(["board", "--no-origin-marker", "-o", "b.svg"]).origin_marker is False
+    # Finding: no marker unless told; an absent diameter stays unknown (measured from the image).
+    for command in (["calibrate", "photo.png"], ["intrinsics", "a.png", "b.png", "c.png"]):
+        finding = parser.parse_args([*command, "-o", "out"])
+        assert finding.origin_marker is False and finding.diameter is None
+        assert finding.layout == "symmetric"
+        told = parser.parse_args([*command, "--origin-marker", "--layout", "asymmetric", "-o", "x"])
+        assert told.origin_marker is True and told.layout == "asymmetric"
+        assert parser.parse_args([*command, "--no-origin-marker", "-o", "x"]).origin_marker is False

@@ -4,7 +4,8 @@ layout inside the margins, refusal of boards that do not fit, atomic writes.
 The SVG is checked by parsing it; the PDF by parsing its structure and content stream (the
 same shapes, in mm under one `cm` matrix) and, where poppler's pdftoppm is installed, by
 rasterising it and measuring dots and ticks in pixels. The SVG is also rasterised when
-librsvg's rsvg-convert is installed.
+librsvg's rsvg-convert is installed. Both layouts (symmetric and OpenCV's asymmetric grid)
+are checked dot by dot, and `planarcal board` is run in process, its files parsed back.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from planarcal.board import CircleGridBoard
+from planarcal import cli
+from planarcal.board import LAYOUTS, CircleGridBoard, Layout
 from planarcal.errors import BoardError
 from planarcal.printable import (
     CHECK_BAR_MM,
@@ -41,6 +43,10 @@ DEFAULT = CircleGridBoard()  # the paper's board: 14 x 10 dots, 10 mm, 20 mm apa
 MARKED = CircleGridBoard(cols=7, rows=5, pitch=20.0, diameter=10.0, origin_marker=True)
 SMALL = CircleGridBoard(cols=4, rows=3, pitch=8.0, diameter=4.0, origin_marker=True)
 ODD = CircleGridBoard(cols=5, rows=4, pitch=12.7, diameter=6.35, origin_marker=True)
+# OpenCV's asymmetric circle grid (its sample's 4 x 11): rows 15 mm apart, 30 mm along a row.
+ASYMMETRIC = CircleGridBoard(
+    cols=4, rows=11, pitch=15.0, diameter=10.0, origin_marker=True, layout="asymmetric"
+)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -74,6 +80,13 @@ def svg_line(root: ET.Element, element_id: str) -> tuple[float, float, float, fl
 
 def all_text(root: ET.Element) -> str:
     return "\n".join("".join(t.itertext()) for t in root.iter(f"{SVG}text"))
+
+
+def info_text(root: ET.Element) -> str:
+    """The info block's lines joined by spaces: a sentence wrapped over lines reads whole."""
+    return " ".join(
+        "".join(t.itertext()) for t in root.iter(f"{SVG}text") if t.get("class") == "info"
+    )
 
 
 def pdf_parts(path: Path) -> tuple[bytes, list[float], str]:
@@ -243,7 +256,9 @@ def test_page_sizes_and_parser() -> None:
 # --------------------------------------------------------------------------- SVG, exactly
 
 
-@pytest.mark.parametrize("board", [MARKED, DEFAULT, ODD], ids=["marked", "default", "odd"])
+@pytest.mark.parametrize(
+    "board", [MARKED, DEFAULT, ODD, ASYMMETRIC], ids=["marked", "default", "odd", "asymmetric"]
+)
 def test_svg_is_exact(tmp_path: Path, board: CircleGridBoard) -> None:
     page = "A3" if board is DEFAULT else "A4"
     layout = write_board(board, tmp_path / "board.svg", page=page)
@@ -261,7 +276,7 @@ def test_svg_is_exact(tmp_path: Path, board: CircleGridBoard) -> None:
     np.testing.assert_allclose(radii, board.dot_diameters() / 2, rtol=0, atol=TOL)
     np.testing.assert_allclose(layout.to_page(board.world_points()), expected_centres(layout))
     # The dot field is centred on the page.
-    span = np.array([(board.cols - 1) * board.pitch, (board.rows - 1) * board.pitch])
+    span = board.world_points().max(axis=0)
     np.testing.assert_allclose(
         np.array(layout.field_offset_mm) + span / 2, [w / 2, h / 2], atol=TOL
     )
@@ -322,6 +337,10 @@ def test_svg_is_exact(tmp_path: Path, board: CircleGridBoard) -> None:
     assert f"page {page} {layout.orientation} ({w:g} x {h:g} mm)" in text
     assert "100%" in text and "ACTUAL SIZE" in text and "100 mm" in text
     assert ("origin: the" in text) == board.origin_marker
+    assert f"{board.layout} grid:" in text
+    if board.layout == "asymmetric":
+        pitch, along = board.pitch, 2 * board.pitch
+        assert f"rows {pitch:g} mm apart, dots {along:g} mm apart along a row" in info_text(root)
 
 
 def _overlap(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> bool:
@@ -374,10 +393,49 @@ def test_origin_marker(tmp_path: Path) -> None:
     assert np.all(radii == 4.0)
 
 
+@pytest.mark.parametrize("grid", LAYOUTS)
+def test_marker_as_large_as_the_neighbour_distance(tmp_path: Path, grid: Layout) -> None:
+    spacing = CircleGridBoard(pitch=20.0, layout=grid).neighbour_distance
+    board = CircleGridBoard(
+        cols=5,
+        rows=4,
+        pitch=20.0,
+        diameter=8.0,
+        origin_marker=True,
+        marker_diameter=spacing,
+        layout=grid,
+    )
+    printed = write_board(board, tmp_path / "board.svg")
+    root = svg_root(printed.path)
+    centres, radii = svg_circles(root)
+    np.testing.assert_allclose(centres, expected_centres(printed), rtol=0, atol=TOL)
+    np.testing.assert_allclose(radii, board.dot_diameters() / 2, rtol=0, atol=TOL)
+    assert radii[0] == pytest.approx(spacing / 2, abs=TOL)
+    # The marker stays clear of every other dot.
+    gaps = np.linalg.norm(centres[1:] - centres[0], axis=1) - radii[0] - radii[1:]
+    assert gaps.min() > 1.0
+    # The field reaches the marker's radius past the outer centres, on every side (as
+    # board.extent does), and everything stays inside the margins, the text off the field.
+    fx0, fy0, fx1, fy1 = printed.field_box_mm
+    assert (fx1 - fx0, fy1 - fy0) == pytest.approx(board.extent, abs=TOL)
+    assert (fx0, fy0) == pytest.approx(tuple(centres[0] - spacing / 2), abs=TOL)
+    assert inside(printed.content_box_mm, printed.usable_box_mm)
+    assert not _overlap(printed.text_box_mm, printed.field_box_mm)
+    assert f"origin: the {spacing:.10g} mm dot" in info_text(root)
+
+
+def test_unknown_diameter_is_refused(tmp_path: Path) -> None:
+    unknown = CircleGridBoard(cols=5, rows=4, pitch=20.0, diameter=None)
+    for name in ("board.svg", "board.pdf"):
+        with pytest.raises(BoardError, match=r"diameter is unknown.*--diameter"):
+            write_board(unknown, tmp_path / name)
+    assert list(tmp_path.iterdir()) == []
+
+
 # --------------------------------------------------------------------------- PDF
 
 
-@pytest.mark.parametrize("board", [MARKED, ODD], ids=["marked", "odd"])
+@pytest.mark.parametrize("board", [MARKED, ODD, ASYMMETRIC], ids=["marked", "odd", "asymmetric"])
 def test_pdf_is_exact(tmp_path: Path, board: CircleGridBoard) -> None:
     layout = write_board(board, tmp_path / "board.pdf", page="letter", orientation="portrait")
     assert layout.format == "pdf" and layout.orientation == "portrait"
@@ -683,3 +741,149 @@ def test_read_only_directory(tmp_path: Path) -> None:
         assert list(directory.iterdir()) == []
     finally:
         directory.chmod(0o755)
+
+
+# --------------------------------------------------------------------------- the command line
+
+
+def run_board_command(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str, *options: str
+) -> tuple[Path, str]:
+    """`planarcal board OPTIONS -o tmp_path/name`, in process: (the file, what it printed)."""
+    out = tmp_path / name
+    assert cli.main(["board", *options, "-o", str(out)]) == 0
+    return out, capsys.readouterr().out
+
+
+def test_board_command_prints_an_origin_marker_by_default(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, printed = run_board_command(tmp_path, capsys, "board.svg", "--cols", "5", "--rows", "4")
+    root = svg_root(out)
+    centres, radii = svg_circles(root)
+    # The default dots are half the 20 mm pitch, the marker 1.5 times that.
+    board = CircleGridBoard(cols=5, rows=4, pitch=20.0, diameter=10.0, origin_marker=True)
+    np.testing.assert_allclose(centres - centres[0], board.world_points(), rtol=0, atol=TOL)
+    np.testing.assert_allclose(radii, board.dot_diameters() / 2, rtol=0, atol=TOL)
+    assert radii[0] == 7.5 and np.all(radii[1:] == 5.0)
+    assert "origin: the 15 mm dot" in info_text(root)
+    assert "origin marker" in printed
+    # --origin-marker is still accepted, and asks for what is the default: the same page.
+    again, _ = run_board_command(
+        tmp_path, capsys, "again.svg", "--cols", "5", "--rows", "4", "--origin-marker"
+    )
+    assert again.read_bytes() == out.read_bytes()
+
+
+def test_board_command_without_origin_marker(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, printed = run_board_command(
+        tmp_path, capsys, "board.pdf", "--cols", "5", "--rows", "4", "--no-origin-marker"
+    )
+    _, _, content = pdf_parts(out)
+    centres, radii = pdf_circles(content)
+    board = CircleGridBoard(cols=5, rows=4, pitch=20.0, diameter=10.0)
+    np.testing.assert_allclose(centres - centres[0], board.world_points(), rtol=0, atol=TOL)
+    np.testing.assert_allclose(radii, 5.0, rtol=0, atol=TOL)
+    shown = " ".join(re.findall(r"\((.*?)\) Tj", content))
+    assert "origin: dot 0, top left" in shown and "origin: the" not in shown
+    assert "origin marker" not in printed
+    # Both at once is a malformed command line.
+    with pytest.raises(SystemExit) as caught:
+        cli.main(["board", "--origin-marker", "--no-origin-marker", "-o", str(out)])
+    assert caught.value.code == 2
+
+
+def test_board_command_marker_as_large_as_the_pitch(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    options = ("--cols", "5", "--rows", "4", "--diameter", "8")
+    out, _ = run_board_command(tmp_path, capsys, "board.pdf", *options, "--marker-diameter", "20")
+    _, _, content = pdf_parts(out)
+    centres, radii = pdf_circles(content)
+    board = CircleGridBoard(
+        cols=5, rows=4, pitch=20.0, diameter=8.0, origin_marker=True, marker_diameter=20.0
+    )
+    np.testing.assert_allclose(centres - centres[0], board.world_points(), rtol=0, atol=TOL)
+    np.testing.assert_allclose(radii, board.dot_diameters() / 2, rtol=0, atol=TOL)
+    assert radii[0] == pytest.approx(10.0, abs=TOL)
+    # Larger than the distance to its neighbours: refused in one line, nothing written.
+    refused = tmp_path / "refused.pdf"
+    code = cli.main(["board", *options, "--marker-diameter", "20.5", "-o", str(refused)])
+    assert code == 1 and not refused.exists()
+    assert "at most the distance to its neighbours" in capsys.readouterr().err
+
+
+def test_board_command_asymmetric_layout(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    options = ("--layout", "asymmetric", "--cols", "4", "--rows", "11", "--pitch", "15")
+    out, printed = run_board_command(tmp_path, capsys, "board.pdf", *options, "--diameter", "10")
+    data, media_box, content = pdf_parts(out)
+    board = CircleGridBoard(
+        cols=4, rows=11, pitch=15.0, diameter=10.0, origin_marker=True, layout="asymmetric"
+    )
+    # OpenCV's asymmetric grid exactly: dot (c, r) at ((2 c + r % 2) * 15, r * 15) mm.
+    centres, radii = pdf_circles(content)
+    np.testing.assert_allclose(centres - centres[0], board.world_points(), rtol=0, atol=TOL)
+    np.testing.assert_allclose(radii, board.dot_diameters() / 2, rtol=0, atol=TOL)
+    # The dot field centred on the page, the check bar below it, 100 mm.
+    page_mm = np.array(media_box[2:]) / PT_PER_MM
+    field_centre = centres[0] + board.world_points().max(axis=0) / 2
+    np.testing.assert_allclose(field_centre, page_mm / 2, rtol=0, atol=TOL)
+    bars = [ln for ln in pdf_lines(content) if abs(ln[2] - ln[0] - 100.0) < TOL and ln[1] == ln[3]]
+    assert len(bars) == 1 and bars[0][1] > centres[:, 1].max()
+    # The page and the command say the layout and what the pitch measures in it.
+    shown = " ".join(re.findall(r"\((.*?)\) Tj", content))
+    assert "asymmetric grid: rows 15 mm apart, dots 30 mm apart along a row" in shown
+    assert "rows 15 mm apart, dots 30 mm apart along a row" in printed
+    assert b"asymmetric grid" in data  # the document's title: board.describe()
+
+    # The page is chosen by the real extent: 7 dots along a row span 13 pitches (281 mm with
+    # the marker), too wide for A4, where the symmetric grid's 6 pitches fit.
+    wide, printed = run_board_command(
+        tmp_path, capsys, "wide.svg", "--layout", "asymmetric", "--cols", "7", "--rows", "5"
+    )
+    assert "on A3 landscape" in printed
+    centres, _ = svg_circles(svg_root(wide))
+    wide_grid = CircleGridBoard(cols=7, rows=5, diameter=None, layout="asymmetric")
+    np.testing.assert_allclose(centres - centres[0], wide_grid.world_points(), rtol=0, atol=TOL)
+    _, printed = run_board_command(tmp_path, capsys, "square.svg", "--cols", "7", "--rows", "5")
+    assert "on A4 " in printed
+
+
+@pytest.mark.parametrize(
+    ("options", "diameter"),
+    [
+        ((), 10.0),
+        (("--pitch", "30"), 15.0),
+        (("--layout", "asymmetric", "--pitch", "10"), 10.0 * np.sqrt(2.0) / 2),
+        (("--diameter", "6"), 6.0),
+    ],
+    ids=["paper", "pitch-30", "asymmetric", "given"],
+)
+def test_board_command_diameter_default(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    options: tuple[str, ...],
+    diameter: float,
+) -> None:
+    out, printed = run_board_command(
+        tmp_path, capsys, "board.svg", "--cols", "5", "--rows", "4", "--no-origin-marker", *options
+    )
+    _, radii = svg_circles(svg_root(out))
+    np.testing.assert_allclose(radii, diameter / 2, rtol=0, atol=TOL)
+    defaulted = "--diameter" not in options
+    assert ("half the distance between neighbouring dots" in printed) == defaulted
+    if defaulted:
+        assert f"Dot diameter {diameter:g} mm" in printed
+
+
+def test_board_command_help_states_the_defaults(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as caught:
+        cli.main(["board", "--help"])
+    assert caught.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps the help
+    assert "--diameter DIAMETER dot diameter (default: half the distance between" in text
+    assert "--no-origin-marker" in text and "--layout {symmetric,asymmetric}" in text

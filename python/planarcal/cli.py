@@ -21,22 +21,59 @@ from planarcal.homography import SOLVERS
 _EXPECTED: tuple[type[BaseException], ...] = (ValueError, OSError)
 
 
-def _board_arguments(p: argparse.ArgumentParser) -> None:
+def _board_arguments(p: argparse.ArgumentParser, *, for_printing: bool = False) -> None:
+    """The board's arguments. A board `for_printing` (`planarcal board`) gets an origin
+    marker unless told otherwise, and a diameter when none is given; a board to be found in
+    an image has no marker unless told (detection recognises an enlarged corner dot by
+    itself), and its diameter, when none is given, is measured from the image."""
+    from planarcal.board import LAYOUTS
+
     g = p.add_argument_group("board (millimetres; the defaults are the paper's board)")
     g.add_argument("--cols", type=int, default=14, help="dots along a row (default 14)")
     g.add_argument("--rows", type=int, default=10, help="dots down a column (default 10)")
-    g.add_argument("--pitch", type=float, default=20.0, help="centre-to-centre distance (20)")
-    g.add_argument("--diameter", type=float, default=10.0, help="dot diameter (10)")
     g.add_argument(
-        "--origin-marker",
-        action="store_true",
-        help="the origin dot is printed larger and fixes the orientation",
+        "--pitch",
+        type=float,
+        default=20.0,
+        help="centre-to-centre distance (20); in the asymmetric layout the distance between "
+        "rows, half that between dots along a row",
     )
+    g.add_argument(
+        "--diameter",
+        type=float,
+        default=None,
+        help="dot diameter (default: half the distance between neighbouring dots)"
+        if for_printing
+        else "dot diameter (default: measured from the image)",
+    )
+    g.add_argument(
+        "--layout",
+        choices=LAYOUTS,
+        default="symmetric",
+        help="symmetric (default): a square grid; asymmetric: OpenCV's asymmetric circle grid, "
+        "every other row shifted by a pitch",
+    )
+    marker = g.add_mutually_exclusive_group()
+    marker.add_argument(
+        "--origin-marker",
+        dest="origin_marker",
+        action="store_true",
+        help="the origin dot is larger and fixes the orientation"
+        + (" (the default)" if for_printing else ""),
+    )
+    marker.add_argument(
+        "--no-origin-marker",
+        dest="origin_marker",
+        action="store_false",
+        help="all dots the same size" + ("" if for_printing else " (the default)"),
+    )
+    p.set_defaults(origin_marker=for_printing)
     g.add_argument(
         "--marker-diameter",
         type=float,
         default=None,
-        help="diameter of the origin marker (default 1.5 x the dots)",
+        help="diameter of the origin marker, at most the distance to its neighbours "
+        "(default 1.5 x the dots, or less where that would crowd them)",
     )
 
 
@@ -50,6 +87,7 @@ def _board(args: argparse.Namespace) -> Any:
         diameter=args.diameter,
         origin_marker=args.origin_marker,
         marker_diameter=args.marker_diameter,
+        layout=args.layout,
     )
 
 
@@ -58,10 +96,15 @@ AUTO_PAGES = ("A4", "A3", "A2", "A1", "A0")
 
 
 def _cmd_board(args: argparse.Namespace) -> int:
+    import dataclasses
+
     from planarcal.errors import BoardError
-    from planarcal.printable import PrintLayout, write_board
+    from planarcal.printable import PrintLayout, pitch_meaning, write_board
 
     board = _board(args)
+    if board.diameter is None:
+        # A printed dot needs a size: half the neighbour distance, dots as wide as the gaps.
+        board = dataclasses.replace(board, diameter=board.neighbour_distance / 2)
     pages = AUTO_PAGES if args.page.lower() == "auto" else (args.page,)
     layout: PrintLayout | None = None
     for page in pages:
@@ -74,11 +117,14 @@ def _cmd_board(args: argparse.Namespace) -> int:
             if page == pages[-1]:
                 raise  # the board fits no page tried: the error names one that would
     assert layout is not None
-    print(
-        f"wrote {args.output}: {board.cols} x {board.rows} dots, {board.diameter:g} mm, "
-        f"{board.pitch:g} mm apart, on {layout.page} {layout.orientation}. Print it at "
-        "100% (actual size, no fit-to-page) and check the bar measures 100 mm."
-    )
+    print(f"wrote {args.output}: {board.describe()}, on {layout.page} {layout.orientation}.")
+    print(f"{board.layout.capitalize()} grid: {pitch_meaning(board)}.")
+    if args.diameter is None:
+        print(
+            f"Dot diameter {board.diameter:g} mm: half the distance between neighbouring dots "
+            "(no --diameter given)."
+        )
+    print("Print it at 100% (actual size, no fit-to-page) and check the bar measures 100 mm.")
     return 0
 
 
@@ -265,7 +311,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write a circle-grid board to print at 100%, with a "
         "100 mm check bar and its parameters.",
     )
-    _board_arguments(p)
+    _board_arguments(p, for_printing=True)
     p.add_argument("-o", "--output", required=True, type=Path, help="board.svg or board.pdf")
     p.add_argument(
         "--page",

@@ -2,10 +2,12 @@
 
 ``write_board(board, "board.pdf", page="A4")`` writes one page of exactly the paper's size
 with the board's dots centred on it, each a filled black circle of its exact diameter at its
-exact position; small arrows and labels beside the dot field show the origin (the centre of
-dot 0) and how X (along a row) and Y (down a column) run; a 100 mm check bar with 10 mm
-ticks and a text block with the board's parameters and the instruction to print at 100 %
-("actual size") and measure the bar sit below (or beside) it, all inside the margins.
+exact position (``board.world_points()`` in either layout, ``board.dot_diameters()`` with
+the origin marker's); small arrows and labels beside the dot field show the origin (the
+centre of dot 0) and how X (along a row) and Y (down a column) run; a 100 mm check bar with
+10 mm ticks and a text block with the board's parameters (its dots, what its pitch measures
+in its layout, its origin) and the instruction to print at 100 % ("actual size") and measure
+the bar sit below (or beside) it, all inside the margins.
 
 Page coordinates, here and in ``PrintLayout``, are millimetres from the page's top-left
 corner, x to the right, y down: a world point (X, Y) of the board is printed at
@@ -42,6 +44,7 @@ import math
 import os
 import re
 import secrets
+import textwrap
 import zlib
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -62,6 +65,7 @@ __all__ = [
     "Orientation",
     "PrintLayout",
     "page_size",
+    "pitch_meaning",
     "write_board",
 ]
 
@@ -106,6 +110,7 @@ _TITLE_TEXT = 3.2  # font size of the info block's first line
 _BODY_TEXT = 2.6  # font size of its other lines
 _LINE_SPACING = 1.45  # baseline to baseline, in font sizes
 _BLOCK_GAP = 5.0  # between the dot field (with its axes) and the info block
+_WRAP = 60  # characters per line of the info block's body: about the check bar's width
 
 # Text metrics, in font sizes (em). Courier's advance is exactly 0.6 em; the budget adds 10 %
 # for a substituted monospace font in SVG viewers.
@@ -355,22 +360,24 @@ def _dots_and_axes(
     board: CircleGridBoard, width: float, height: float
 ) -> tuple[list[_Shape], tuple[float, float], Box]:
     """The dots, centred on a page of this size, and the axis marks beside them."""
-    pitch = float(board.pitch)
-    span_x = (board.cols - 1) * pitch
-    span_y = (board.rows - 1) * pitch
+    points = board.world_points()
+    diameters = board.dot_diameters()
+    # The centres span from dot 0 at (0, 0) to the largest X and Y of any dot (in the
+    # asymmetric layout the last column's X is on a shifted row).
+    span_x, span_y = (float(v) for v in points.max(axis=0))
     ox = (width - span_x) / 2
     oy = (height - span_y) / 2
-    biggest = max(float(board.diameter), board.origin_marker_diameter)
+    # board.extent: half the biggest dot (the origin marker, if larger) past the outer
+    # centres on every side.
+    ex, ey = board.extent
     field_box = (
-        ox - biggest / 2,
-        oy - biggest / 2,
-        ox + span_x + biggest / 2,
-        oy + span_y + biggest / 2,
+        ox + span_x / 2 - ex / 2,
+        oy + span_y / 2 - ey / 2,
+        ox + span_x / 2 + ex / 2,
+        oy + span_y / 2 + ey / 2,
     )
 
     shapes: list[_Shape] = []
-    points = board.world_points()
-    diameters = board.dot_diameters()
     for k in range(board.n_points):
         is_origin = k == 0
         shapes.append(
@@ -447,6 +454,37 @@ def _dots_and_axes(
     return shapes, (ox, oy), field_box
 
 
+def pitch_meaning(board: CircleGridBoard) -> str:
+    """What the pitch measures on ``board``, in words: "dots 20 mm apart along rows and
+    columns", or in the asymmetric layout "rows 15 mm apart, dots 30 mm apart along a row,
+    every other row shifted 15 mm"."""
+    pitch = _num(board.pitch)
+    if board.layout == "asymmetric":
+        return (
+            f"rows {pitch} mm apart, dots {_num(2 * board.pitch)} mm apart along a row, "
+            f"every other row shifted {pitch} mm"
+        )
+    return f"dots {pitch} mm apart along rows and columns"
+
+
+def _board_lines(board: CircleGridBoard) -> list[str]:
+    """The info block's description of the board (board.describe(), told for print): its
+    dots, its layout, its origin. Lines may be long; the caller wraps them."""
+    ex, ey = board.extent
+    if board.origin_marker:
+        origin = f"origin: the {_num(board.origin_marker_diameter)} mm dot"
+    else:
+        origin = "origin: dot 0, top left"
+    # An asymmetric grid's columns zigzag, so its Y is better told by the rows.
+    y_axis = "Y down a column" if board.layout == "symmetric" else "Y across the rows"
+    return [
+        f"dots {_num(board.dots_mm())} mm, pitch {_num(board.pitch)} mm, "
+        f"field {_num(ex)} x {_num(ey)} mm",
+        f"{board.layout} grid: {pitch_meaning(board)}",
+        f"{origin}; X along a row, {y_axis}",
+    ]
+
+
 def _info_block(
     board: CircleGridBoard,
     page: str,
@@ -478,27 +516,13 @@ def _info_block(
         shapes.append(dataclasses.replace(label, id=f"tick-label-{i}", cls="tick-label"))
     bar_box = _union(s.box() for s in shapes)
 
-    ex, ey = board.extent
     w, h = size
-    if board.origin_marker:
-        origin = f"origin: the {_num(board.origin_marker_diameter)} mm dot"
-    else:
-        origin = "origin: dot 0, top left"
     bar_word = "above" if arrangement == "stacked" else "beside"
-    lines = [
-        (f"planarcal circle-grid board, {board.cols} x {board.rows} dots", _TITLE_TEXT, True),
-        (
-            f"dots {_num(board.diameter)} mm, pitch {_num(board.pitch)} mm, "
-            f"field {_num(ex)} x {_num(ey)} mm",
-            _BODY_TEXT,
-            False,
-        ),
-        (f"{origin}; X along a row, Y down a column", _BODY_TEXT, False),
-        (
-            f"page {page} {orientation} ({_num(w)} x {_num(h)} mm), margins {_num(margin)} mm",
-            _BODY_TEXT,
-            False,
-        ),
+    lines = [(f"planarcal circle-grid board, {board.cols} x {board.rows} dots", _TITLE_TEXT, True)]
+    page_line = f"page {page} {orientation} ({_num(w)} x {_num(h)} mm), margins {_num(margin)} mm"
+    for line in [*_board_lines(board), page_line]:
+        lines += [(part, _BODY_TEXT, False) for part in textwrap.wrap(line, _WRAP)]
+    lines += [
         ('PRINT AT 100% / "ACTUAL SIZE", not "fit to page";', _BODY_TEXT, True),
         (f"the bar {bar_word} must measure {_num(CHECK_BAR_MM)} mm.", _BODY_TEXT, True),
     ]
@@ -657,10 +681,7 @@ def _smallest_page(board: CircleGridBoard, margin: float, family: str) -> str:
 
 def _svg(drawing: _Drawing, board: CircleGridBoard) -> bytes:
     w, h = drawing.size
-    title = (
-        f"planarcal circle-grid board {board.cols} x {board.rows}, dots {_num(board.diameter)} "
-        f"mm, pitch {_num(board.pitch)} mm, {drawing.page} {drawing.orientation}"
-    )
+    title = f"planarcal circle-grid board: {board.describe()}; {drawing.page} {drawing.orientation}"
     out = [
         '<?xml version="1.0" encoding="UTF-8" standalone="no"?>',
         f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" width="{_fmt(w)}mm" '
@@ -756,10 +777,7 @@ def _pdf_content(drawing: _Drawing) -> bytes:
 def _pdf(drawing: _Drawing, board: CircleGridBoard) -> bytes:
     w, h = drawing.size
     content = zlib.compress(_pdf_content(drawing), 9)
-    title = (
-        f"planarcal circle-grid board {board.cols} x {board.rows}, dots {_num(board.diameter)} "
-        f"mm, pitch {_num(board.pitch)} mm"
-    )
+    title = f"planarcal circle-grid board: {board.describe()}"
     objects: list[bytes] = [
         b"<< /Type /Catalog /Pages 2 0 R "
         b"/ViewerPreferences << /PrintScaling /None /PickTrayByPDFSize true >> >>",
@@ -849,8 +867,9 @@ def write_board(
     Raises BoardError when the board, with its axis marks, check bar and text, does not fit
     inside the margins (in the orientation asked for, or in either for ``"auto"``): the
     message gives the dot field's extent, the page's usable size, and the smallest standard
-    page that fits. An unwritable path raises OSError naming it; the file is written
-    atomically (see the module's docstring).
+    page that fits, and when the board leaves its dots' diameter unknown (``diameter=None``):
+    a printed dot needs a size. An unwritable path raises OSError naming it; the file is
+    written atomically (see the module's docstring).
     """
     target = Path(os.fspath(path))
     suffix = target.suffix.lower()
@@ -883,6 +902,7 @@ def write_board(
             raise ValueError(f"a page must have a positive width and height, got {page!r}")
         label, size = f"{_num(pw)}x{_num(ph)}", (pw, ph)
 
+    board.dots_mm()  # BoardError when the dots' size is unknown: it cannot be printed
     drawing = _fit(board, label, size, orientation, margin)
     if drawing is None:
         raise BoardError(_refusal(board, label, size, orientation, margin))
@@ -917,8 +937,8 @@ def _refusal(
         usable.append(f"{_num(max(w - 2 * margin, 0))} x {_num(max(h - 2 * margin, 0))} mm ({o})")
     where = "in either orientation" if orientation == "auto" else f"in {orientation}"
     message = (
-        f"the board ({board.cols} x {board.rows} dots, pitch {_num(board.pitch)} mm) does not fit "
-        f"on {label} {where}: its dots span {_num(ex)} x {_num(ey)} mm, and the axis marks, the "
+        f"the board ({board.describe()}) does not fit on {label} {where}: its dots span "
+        f"{_num(ex)} x {_num(ey)} mm, and the axis marks, the "
         f"{_num(CHECK_BAR_MM)} mm check bar and the text need room beside them, but the page "
         f"leaves {' or '.join(usable)} inside {_num(margin)} mm margins"
     )
