@@ -4,9 +4,11 @@ table and the figures, on a rendered scene detected and calibrated for real."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import math
+import types
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
-from planarcal import paper_data, report, synth
+from planarcal import drawing, paper_data, report, synth
 from planarcal.calibration import Calibration
 from planarcal.detect import detect_board
 from planarcal.errors import IntrinsicsError, LensModelError, PointAtInfinityError
@@ -194,7 +196,7 @@ def test_without_a_lens_model_there_is_no_before_after(before: Calibration) -> N
 def test_points_csv_has_the_leave_one_out_columns(cal: Calibration) -> None:
     rows = list(csv.reader(io.StringIO(report.points_csv(cal))))
     header, body = rows[0], rows[1:]
-    assert header == [*OLD_COLUMNS, "loo_error_px", "predicted_loo_std_mm"]
+    assert header == [*OLD_COLUMNS, "loo_error_px", "predicted_loo_std_mm", "refined", "enlarged"]
     assert len(body) == len(cal.world_points)
     loo_px = np.array([float(r[header.index("loo_error_px")]) for r in body])
     predicted = np.array([float(r[header.index("predicted_loo_std_mm")]) for r in body])
@@ -319,4 +321,163 @@ def test_write_report_writes_six_files_and_no_debris(
             _plausible(picture)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["lens_model"] == cal.lens_model
-    assert (out / "points.csv").read_text() == report.points_csv(cal)
+    assert (out / "points.csv").read_text() == report.points_csv(cal, detection)
+
+
+# ------------------------------------------------------------------------------------------
+# which model the detection figure's residual comes from
+
+
+def test_the_detection_figure_names_the_model_of_each_residual(
+    cal: Calibration, before: Calibration, detection: Any
+) -> None:
+    """The figure quotes the homography alone's residual and the chosen lens model's, each
+    named, and the summary text gives the same figures in the same words."""
+    label = "\n".join(drawing.detection_label(detection, report.residual_note(cal)))
+    alone, chosen = f"{before.stats.rms:.3f}", f"{cal.stats.rms:.3f}"
+    assert (
+        f"residual of the homography alone through the centres: {alone} px RMS; "
+        f"with the lens model {cal.lens_model}: {chosen} px RMS"
+    ) in label
+    text = report.summary_text(cal, detection)
+    assert f"Reprojection error (px), with the lens model {cal.lens_model}: " in text
+    assert f"RMS {chosen}," in text
+    rms_row = next(line for line in text.split("\n") if "reprojection error, RMS (px)" in line)
+    assert rms_row.split()[-2:] == [alone, chosen]
+
+
+def test_without_a_lens_model_the_residual_is_the_homography_alone(before: Calibration) -> None:
+    note = report.residual_note(before)
+    assert note.startswith("residual of the homography alone") and "(no lens model)" in note
+    assert f"{before.stats.rms:.3f} px RMS" in note
+    assert "Reprojection error (px), of the homography alone: " in report.summary_text(before)
+
+
+def test_the_detection_alone_quotes_its_own_residual(detection: Any) -> None:
+    """Without a calibration the figure still says what its residual is."""
+    label = drawing.detection_label(detection)
+    assert label[1] == (
+        "residual of the homography alone through the centres: "
+        f"{detection.residual_rms_px:.3f} px RMS"
+    )
+
+
+# ------------------------------------------------------------------------------------------
+# the detection's own findings: dots not refined, enlarged dots, orientation, warnings
+
+ORIGINAL_FIELDS = (
+    "board",
+    "image_points",
+    "image_size",
+    "method",
+    "polarity",
+    "dot_diameters_px",
+    "residual_rms_px",
+)
+NOT_REFINED = (4, 50)  # 0-based: points 5 and 51
+ENLARGED = (0,)
+RULE = "dot 0 is the corner dot nearest the image's top-left corner"
+
+
+def _plain(detection: Any) -> Any:
+    """The detection as it was before it carried per-dot flags (whatever detect.py adds)."""
+    fields = {name: getattr(detection, name) for name in ORIGINAL_FIELDS}
+    return types.SimpleNamespace(**fields, pitch_px=detection.pitch_px)
+
+
+def _flagged(detection: Any, **extra: Any) -> Any:
+    """The detection with two dots not refined, one enlarged, an ambiguous orientation and a
+    warning (or what `extra` says instead)."""
+    n = len(detection.image_points)
+    refined = np.ones(n, dtype=bool)
+    refined[list(NOT_REFINED)] = False
+    enlarged = np.zeros(n, dtype=bool)
+    enlarged[list(ENLARGED)] = True
+    fields = {
+        "refined": refined,
+        "enlarged": enlarged,
+        "orientation": "ambiguous",
+        "orientation_rule": RULE,
+        "warnings": ("the board fills little of the image",),
+        **extra,
+    }
+    if dataclasses.is_dataclass(detection) and all(
+        f in {x.name for x in dataclasses.fields(detection)} for f in fields
+    ):
+        return dataclasses.replace(detection, **fields)  # once detect.py carries them
+    return types.SimpleNamespace(**vars(_plain(detection)), **fields)
+
+
+def test_summaries_carry_the_detections_findings(cal: Calibration, detection: Any) -> None:
+    flagged = _flagged(detection)
+    out = report.summary_json(cal, flagged)["detection"]
+    assert out["n_not_refined"] == 2 and out["not_refined_points"] == [5, 51]
+    assert out["enlarged_points"] == [1]
+    assert out["orientation"] == f"ambiguous: {RULE}" and out["orientation_rule"] == RULE
+    assert out["warnings"] == ["the board fills little of the image"]
+    json.dumps(out, allow_nan=False)
+    text = report.summary_text(cal, flagged)
+    assert f"Orientation (which dot is the origin): ambiguous: {RULE}" in text
+    assert (
+        "Centres refined: 138 of 140 dots; not refined (a coarser centre kept): points 5, 51"
+        in (text)
+    )
+    assert "Enlarged dots: point 1" in text
+    assert "Warning: the board fills little of the image" in text
+
+
+def test_an_origin_marker_is_named_as_such(cal: Calibration, detection: Any) -> None:
+    marked = _flagged(detection, orientation="marker", warnings=())
+    assert report.summary_json(cal, marked)["detection"]["orientation"] == "origin marker"
+    text = report.summary_text(cal, marked)
+    assert "Orientation (which dot is the origin): origin marker" in text
+    assert "Warning:" not in text
+
+
+def test_summaries_without_the_findings_say_nothing_of_them(
+    cal: Calibration, detection: Any
+) -> None:
+    out = report.summary_json(cal, _plain(detection))["detection"]
+    assert set(out) == {"method", "polarity", "pitch_px", "residual_rms_px"}
+    text = report.summary_text(cal, _plain(detection))
+    assert "Orientation" not in text and "Centres refined" not in text
+
+
+def test_points_csv_flags_each_dot(cal: Calibration, detection: Any) -> None:
+    rows = list(csv.DictReader(io.StringIO(report.points_csv(cal, _flagged(detection)))))
+    refined = [r["point"] for r in rows if r["refined"] == "0"]
+    enlarged = [r["point"] for r in rows if r["enlarged"] == "1"]
+    assert refined == ["5", "51"] and enlarged == ["1"]
+    assert {r["refined"] for r in rows} == {"0", "1"}
+    # Unknown: empty cells, the same header.
+    plain = list(csv.DictReader(io.StringIO(report.points_csv(cal, _plain(detection)))))
+    assert {r["refined"] for r in plain} == {""} and {r["enlarged"] for r in plain} == {""}
+
+
+def test_the_detection_figure_marks_the_flagged_dots(scene: Any, detection: Any) -> None:
+    flagged = _flagged(detection)
+    label = drawing.detection_label(flagged)
+    assert any("red cross: 2 dot(s) not refined" in line for line in label)
+    assert any("magenta ring: 1 enlarged dot(s)" in line for line in label)
+    marked = drawing.draw_detection(scene.image, flagged)
+    plain = drawing.draw_detection(scene.image, _plain(detection))
+    r = int(0.6 * detection.pitch_px)  # the ring's radius is half a pitch
+
+    def changed(k: int) -> bool:
+        x, y = np.rint(detection.image_points[k]).astype(int)
+        window = (slice(y - r, y + r + 1), slice(x - r, x + r + 1))
+        return bool((marked[window] != plain[window]).any())
+
+    assert all(changed(k) for k in (*NOT_REFINED, *ENLARGED))
+    middle = len(detection.image_points) // 2 + detection.board.cols // 2
+    assert not changed(middle)
+
+
+def test_write_report_carries_the_findings(
+    cal: Calibration, scene: Any, detection: Any, tmp_path: Path
+) -> None:
+    report.write_report(cal, tmp_path, image=scene.image, detection=_flagged(detection))
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["detection"]["not_refined_points"] == [5, 51]
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "points.csv").read_text())))
+    assert [r["point"] for r in rows if r["refined"] == "0"] == ["5", "51"]

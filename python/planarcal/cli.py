@@ -131,7 +131,13 @@ def _cmd_board(args: argparse.Namespace) -> int:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from planarcal.calibration import Calibration
     from planarcal.detect import detect_board
-    from planarcal.report import summary_json, summary_text, write_report
+    from planarcal.errors import BoardNotFoundError
+    from planarcal.report import (
+        summary_json,
+        summary_text,
+        write_detection_failure,
+        write_report,
+    )
 
     board = _board(args)
     intrinsics = None
@@ -140,7 +146,18 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
         intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
     image = _read_image(args)
-    detection = detect_board(image, board, polarity=args.polarity)
+    try:
+        detection = detect_board(image, board, polarity=args.polarity)
+    except BoardNotFoundError as e:
+        if args.report is not None:
+            # What the search saw is what it takes to fix the picture: draw it, then fail.
+            try:
+                drawn = write_detection_failure(args.report, image, e.diagnostics, str(e))
+            except OSError as why:
+                print(f"planarcal calibrate: could not draw what was seen: {why}", file=sys.stderr)
+            else:
+                print(f"planarcal calibrate: drew what the search saw in {drawn}", file=sys.stderr)
+        raise
     lens = args.lens
     if intrinsics is not None and lens == "auto":
         lens = "none"

@@ -34,9 +34,55 @@ def _scale(canvas: U8) -> float:
     return max(0.5, float(max(canvas.shape[:2])) / 1280.0)
 
 
-def draw_detection(image: Any, detection: Any) -> U8:
+def rgb_image(image: Any) -> U8:
+    """The image as 8-bit RGB (matplotlib's channel order), grey or BGR in."""
+    return np.ascontiguousarray(_canvas(image)[:, :, ::-1])
+
+
+def dot_flags(detection: Any, name: str) -> NDArray[np.bool_] | None:
+    """The per-dot flag `name` ("refined", "enlarged") of a detection, one bool per dot, or
+    None when the detection does not carry it (older detections have no such field)."""
+    flags = getattr(detection, name, None)
+    if flags is None:
+        return None
+    out = np.asarray(flags, dtype=bool).reshape(-1)
+    return out if len(out) == len(detection.image_points) else None
+
+
+# Colours (BGR) of the marks on dots the detection flags.
+UNREFINED_BGR = (0, 0, 255)
+ENLARGED_BGR = (255, 0, 255)
+
+
+def homography_residual_note(residual_rms_px: float) -> str:
+    """What the detection's own residual is: the homography alone, no lens model."""
+    return f"residual of the homography alone through the centres: {residual_rms_px:.3f} px RMS"
+
+
+def detection_label(detection: Any, residual_note: str | None = None) -> list[str]:
+    """The lines written on the detection figure: the board and finder, what the residual is
+    (`residual_note`, by default the detection's own: the homography alone) and, when the
+    detection flags dots, what their marks mean."""
+    board = detection.board
+    lines = [
+        f"{board.cols} x {board.rows} board, {detection.method} finder, {detection.polarity} dots",
+        residual_note or homography_residual_note(detection.residual_rms_px),
+    ]
+    refined = dot_flags(detection, "refined")
+    if refined is not None and not refined.all():
+        n = int((~refined).sum())
+        lines.append(f"red cross: {n} dot(s) not refined (a coarser centre kept)")
+    enlarged = dot_flags(detection, "enlarged")
+    if enlarged is not None and enlarged.any():
+        lines.append(f"magenta ring: {int(enlarged.sum())} enlarged dot(s)")
+    return lines
+
+
+def draw_detection(image: Any, detection: Any, *, residual_note: str | None = None) -> U8:
     """The image with every found dot centre marked and numbered in board order, the grid
-    drawn through them, and the board's origin and X / Y directions."""
+    drawn through them, the board's origin and X / Y directions, the dots the detection
+    flags (not refined: a red cross; enlarged: a magenta ring) and the lines of
+    `detection_label` (`residual_note`: which model the residual quoted comes from)."""
     import cv2
 
     canvas = _canvas(image)
@@ -99,12 +145,57 @@ def draw_detection(image: Any, detection: Any) -> U8:
             max(2, int(2 * s)),
             cv2.LINE_AA,
         )
-    note = (
-        f"{board.cols} x {board.rows} board, {detection.method} finder, "
-        f"residual {detection.residual_rms_px:.2f} px RMS"
-    )
-    _label(canvas, note, (10, int(25 * s)), s)
+    _mark_flagged_dots(canvas, detection, s)
+    lines = _fitting_lines(detection_label(detection, residual_note), canvas.shape[1] - 20, s)
+    for k, line in enumerate(lines):
+        _label(canvas, line, (10, int((25 + 20 * k) * s)), s)
     return canvas
+
+
+def _mark_flagged_dots(canvas: U8, detection: Any, s: float) -> None:
+    """A red cross on each dot not refined, a magenta ring round each enlarged one."""
+    import cv2
+
+    pts = detection.image_points
+    refined = dot_flags(detection, "refined")
+    enlarged = dot_flags(detection, "enlarged")
+    size = max(8, int(0.5 * detection.pitch_px))
+    if refined is not None:
+        for x, y in pts[~refined]:
+            cv2.drawMarker(
+                canvas,
+                (round(x), round(y)),
+                UNREFINED_BGR,
+                cv2.MARKER_TILTED_CROSS,
+                size,
+                max(2, int(2 * s)),
+                cv2.LINE_AA,
+            )
+    if enlarged is not None:
+        for x, y in pts[enlarged]:
+            cv2.circle(
+                canvas, (round(x), round(y)), size, ENLARGED_BGR, max(2, int(2 * s)), cv2.LINE_AA
+            )
+
+
+def _fitting_lines(lines: list[str], width: int, s: float) -> list[str]:
+    """The lines, each too wide for the image split after its "; " (a long residual note
+    names two models: one per line then)."""
+    out = []
+    for line in lines:
+        if _text_width(line, s) <= width or "; " not in line:
+            out.append(line)
+        else:
+            head, tail = line.split("; ", 1)
+            out += [head + ";", *_fitting_lines(["  " + tail], width, s)]
+    return out
+
+
+def _text_width(text: str, s: float) -> int:
+    import cv2
+
+    (w, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * s, max(1, int(s)))
+    return int(w)
 
 
 def draw_objects(image: Any, objects: Sequence[Any]) -> U8:

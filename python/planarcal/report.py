@@ -14,6 +14,9 @@
   working area, with where it doubles relative to the board's centre, as PNG.
 * ``write_report``: all of these (and the detection drawn on the image, Figure 4) into a
   directory, each file written atomically.
+* ``detection_failure_figure`` / ``write_detection_failure``: when the board is not found,
+  the image with what the search saw (the blobs, each candidate grid and why it was refused)
+  and the error, as PNG.
 """
 
 from __future__ import annotations
@@ -34,6 +37,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calibration import Calibration, LensModel
+from planarcal.drawing import (
+    dot_flags,
+    draw_detection,
+    homography_residual_note,
+    png_bytes,
+    rgb_image,
+)
 from planarcal.errors import HomographyError, IntrinsicsError, LensModelError
 from planarcal.files import atomic_write
 
@@ -83,12 +93,57 @@ def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
     if cal.image_size is not None:
         out["image_size_px"] = list(cal.image_size)
     if detection is not None:
-        out["detection"] = {
-            "method": detection.method,
-            "polarity": detection.polarity,
-            "pitch_px": detection.pitch_px,
-        }
+        out["detection"] = _detection_json(detection)
     return {k: _finite_or_none(v) for k, v in out.items()}
+
+
+def _detection_json(detection: Any) -> dict[str, Any]:
+    """The finder, the polarity and the pitch; and, when the detection carries them, the
+    dots not refined and the enlarged ones (1-based point numbers, as in the CSV), the
+    orientation and the warnings."""
+    out: dict[str, Any] = {
+        "method": detection.method,
+        "polarity": detection.polarity,
+        "pitch_px": detection.pitch_px,
+        "residual_rms_px": detection.residual_rms_px,
+    }
+    refined = dot_flags(detection, "refined")
+    if refined is not None:
+        out["n_not_refined"] = int((~refined).sum())
+        out["not_refined_points"] = _point_numbers(~refined)
+    enlarged = dot_flags(detection, "enlarged")
+    if enlarged is not None:
+        out["enlarged_points"] = _point_numbers(enlarged)
+    orientation = _orientation(detection)
+    if orientation is not None:
+        out["orientation"] = orientation
+        out["orientation_rule"] = getattr(detection, "orientation_rule", None)
+    warnings = _warnings(detection)
+    if warnings is not None:
+        out["warnings"] = list(warnings)
+    return out
+
+
+def _point_numbers(flags: NDArray[np.bool_]) -> list[int]:
+    """The 1-based numbers of the flagged points (the CSV's and the text's numbering)."""
+    return [int(k) + 1 for k in np.flatnonzero(flags)]
+
+
+def _orientation(detection: Any) -> str | None:
+    """How dot 0 was chosen: "origin marker", "ambiguous: <the rule applied>", or None when
+    the detection does not say."""
+    orientation = getattr(detection, "orientation", None)
+    if orientation is None:
+        return None
+    if orientation == "marker":
+        return "origin marker"
+    rule = getattr(detection, "orientation_rule", None)
+    return f"{orientation}: {rule}" if rule else str(orientation)
+
+
+def _warnings(detection: Any) -> tuple[str, ...] | None:
+    warnings = getattr(detection, "warnings", None)
+    return None if warnings is None else tuple(str(w) for w in warnings)
 
 
 def _finite_or_none(v: Any) -> Any:
@@ -210,6 +265,7 @@ def _lens_text(cal: Calibration) -> list[str]:
         before, after = _homography_alone(cal).summary(), cal.summary()
         rows = (
             ("reprojection error, mean (px)", before.mean_px, after.mean_px, ".3f"),
+            ("reprojection error, RMS (px)", before.rms_px, after.rms_px, ".3f"),
             ("reprojection error, max (px)", before.max_px, after.max_px, ".3f"),
             ("leave-one-out error, mean (mm)", before.loo_mean_mm, after.loo_mean_mm, ".4f"),
             ("leave-one-out error, RMS (mm)", before.loo_rms_mm, after.loo_rms_mm, ".4f"),
@@ -222,14 +278,68 @@ def _lens_text(cal: Calibration) -> list[str]:
     return lines
 
 
+def _detection_text(detection: Any) -> list[str]:
+    """The detection's orientation, dots not refined, enlarged dots and warnings, as far as
+    it carries them."""
+    lines = []
+    orientation = _orientation(detection)
+    if orientation is not None:
+        lines.append(f"Orientation (which dot is the origin): {orientation}")
+    refined = dot_flags(detection, "refined")
+    if refined is not None:
+        n = len(refined)
+        if refined.all():
+            lines.append(f"Centres refined: all {n} dots")
+        else:
+            lines.append(
+                f"Centres refined: {int(refined.sum())} of {n} dots; not refined (a coarser "
+                f"centre kept): {_point_list(~refined)}"
+            )
+    enlarged = dot_flags(detection, "enlarged")
+    if enlarged is not None and enlarged.any():
+        lines.append(f"Enlarged dots: {_point_list(enlarged)}")
+    lines += [f"Warning: {w}" for w in _warnings(detection) or ()]
+    return lines
+
+
+def _point_list(flags: NDArray[np.bool_], most: int = 20) -> str:
+    """ "point 3" or "points 3, 17, 40" (1-based), the first `most` of a long list."""
+    numbers = _point_numbers(flags)
+    shown = ", ".join(str(k) for k in numbers[:most])
+    more = f" and {len(numbers) - most} more" if len(numbers) > most else ""
+    return f"point{'s' if len(numbers) > 1 else ''} {shown}{more}"
+
+
+def _model_phrase(cal: Calibration) -> str:
+    """Which model a calibration's residuals come from, as the report words it."""
+    if cal.lens_model == "none":
+        return "of the homography alone"
+    if cal.lens_model == "intrinsics":
+        return "with the camera intrinsics"
+    return f"with the lens model {cal.lens_model}"
+
+
+def residual_note(cal: Calibration) -> str:
+    """The detection figure's residual line: the homography alone's RMS residual through the
+    centres and, with a lens model, the chosen model's, each named (the same figures as the
+    summary's reprojection errors)."""
+    alone = cal if cal.lens_model == "none" else _homography_alone(cal)
+    note = homography_residual_note(alone.stats.rms)
+    if cal.lens_model == "none":
+        return note + " (no lens model)"
+    return f"{note}; {_model_phrase(cal)}: {cal.stats.rms:.3f} px RMS"
+
+
 def summary_text(cal: Calibration, detection: Any = None) -> str:
     """A readable summary of the calibration."""
     s = cal.summary()
     lines = []
     if cal.board is not None:
         b = cal.board
+        # A board may leave its dot diameter unknown (measured from the image instead).
+        across = "" if b.diameter is None else f", {b.diameter:g} mm across"
         lines.append(
-            f"Board: {b.cols} x {b.rows} dots, {b.diameter:g} mm across, {b.pitch:g} mm apart"
+            f"Board: {b.cols} x {b.rows} dots{across}, {b.pitch:g} mm apart"
             + (", origin marker" if b.origin_marker else "")
         )
     if detection is not None:
@@ -238,13 +348,15 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
             f"Found all {s.n_points} dots in the {w} x {h} image ({detection.method} finder, "
             f"{detection.polarity} dots, {detection.pitch_px:.1f} px apart)"
         )
+        lines += _detection_text(detection)
     fit = f"{s.solver}" + (" + Levenberg-Marquardt" if s.refine else "")
     lines += [
         f"Homography: {fit}, from {s.n_points} points",
         f"Lens: {cal.lens_note}",
         *_lens_text(cal),
-        f"Reprojection error (px): mean {s.mean_px:.3f}, RMS {s.rms_px:.3f}, "
-        f"max {s.max_px:.3f} (point {cal.stats.argmax + 1}), min {s.min_px:.3f}",
+        f"Reprojection error (px), {_model_phrase(cal)}: mean {s.mean_px:.3f}, "
+        f"RMS {s.rms_px:.3f}, max {s.max_px:.3f} (point {cal.stats.argmax + 1}), "
+        f"min {s.min_px:.3f}",
         f"World coordinates after calibration: |dX| <= {s.max_abs_dx_mm:.3f} mm, "
         f"|dY| <= {s.max_abs_dy_mm:.3f} mm",
         f"Leave-one-out error (mm): mean {s.loo_mean_mm:.3f}, RMS {s.loo_rms_mm:.3f}, "
@@ -290,19 +402,26 @@ CSV_COLUMNS = (
     "loo_error_mm",
     "loo_error_px",
     "predicted_loo_std_mm",
+    "refined",
+    "enlarged",
 )
 
 
-def points_csv(cal: Calibration) -> str:
+def points_csv(cal: Calibration, detection: Any = None) -> str:
     """The per-point table as CSV: point (1-based), its row and column on the board (when
     known), world and image coordinates, reprojection (Table 3), world after calibration
     and deviations (Table 4), the leave-one-out deviation and error (mm, and px in the
-    image), and the leave-one-out error the fit's covariance predicts (1-sigma, mm)."""
+    image), the leave-one-out error the fit's covariance predicts (1-sigma, mm), and whether
+    the detection refined the dot's centre and found it enlarged (1 / 0; empty when the
+    detection does not say)."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
     cols = cal.board.cols if cal.board is not None else None
-    for i in range(len(cal.world_points)):
+    n = len(cal.world_points)
+    refined = _flag_column(detection, "refined", n)
+    enlarged = _flag_column(detection, "enlarged", n)
+    for i in range(n):
         row, col = ("", "") if cols is None else divmod(i, cols)
         values = [
             *cal.world_points[i],
@@ -317,17 +436,30 @@ def points_csv(cal: Calibration) -> str:
             cal.predicted_loo_std_mm[i],
         ]
         writer.writerow(
-            [i + 1, row, col, *(f"{v:.6f}" if math.isfinite(v) else "" for v in values)]
+            [
+                i + 1,
+                row,
+                col,
+                *(f"{v:.6f}" if math.isfinite(v) else "" for v in values),
+                refined[i],
+                enlarged[i],
+            ]
         )
     return buf.getvalue()
+
+
+def _flag_column(detection: Any, name: str, n: int) -> list[str]:
+    """A per-dot flag as a CSV column of "1" / "0", or of "" when there is none for these
+    `n` points."""
+    flags = None if detection is None else dot_flags(detection, name)
+    if flags is None or len(flags) != n:
+        return [""] * n
+    return ["1" if f else "0" for f in flags]
 
 
 def deviation_figure(cal: Calibration) -> bytes:
     """The paper's Figure 5 (dX and dY per point, mm) and a vector field of the deviations
     over the board, as PNG bytes."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
     dev = cal.deviations_mm
@@ -386,9 +518,8 @@ or past the plane's horizon)."""
 
 
 def _figure(width: float, height: float) -> Figure:
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
+    # The OO API alone: savefig renders through Agg without a backend being chosen, and
+    # choosing one (matplotlib.use) would change the backend of the user's own plots.
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width, height), dpi=100, layout="constrained")
@@ -974,12 +1105,10 @@ def write_report(
     """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png and (with an
     image and its detection) detection.png into `out_dir` (created if need be), each
     atomically; returns the paths written."""
-    from planarcal.drawing import draw_detection, png_bytes
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = [
-        atomic_write(out / "points.csv", points_csv(cal)),
+        atomic_write(out / "points.csv", points_csv(cal, detection)),
         atomic_write(
             out / "summary.json",
             json.dumps(summary_json(cal, detection), indent=2, allow_nan=False) + "\n",
@@ -989,7 +1118,154 @@ def write_report(
         atomic_write(out / "uncertainty.png", uncertainty_figure(cal)),
     ]
     if image is not None and detection is not None:
-        written.append(
-            atomic_write(out / "detection.png", png_bytes(draw_detection(image, detection)))
-        )
+        drawn = draw_detection(image, detection, residual_note=residual_note(cal))
+        written.append(atomic_write(out / "detection.png", png_bytes(drawn)))
     return written
+
+
+# -- when the board is not found ------------------------------------------------------------
+
+DETECTION_FAILED_PNG = "detection_failed.png"
+"""The failure figure's name in the report directory."""
+
+_BLOB_COLOURS = {"dark": "tab:blue", "light": "tab:orange"}
+_CANDIDATE_COLOURS = ("tab:red", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:cyan")
+
+
+def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> bytes:
+    """What a failed search saw, as PNG bytes: the image with the blobs of each polarity
+    (circles of their diameter), each candidate grid (its points joined in order, numbered
+    and labelled with its finder and polarity), and beside it the error message and why each
+    candidate was refused. `diagnostics`: a DetectionDiagnostics, or None (the image and the
+    message alone)."""
+    picture = rgb_image(image)
+    h, w = picture.shape[:2]
+    # The image panel is about 10 in wide: a height that fits its aspect, room for the text.
+    fig = _figure(16, min(12.0, max(6.5, 10.0 * h / w + 1.5)))
+    grid = fig.add_gridspec(1, 2, width_ratios=(1.8, 1))
+    ax = fig.add_subplot(grid[0, 0])
+    ax.imshow(picture, interpolation="nearest")
+    if diagnostics is not None:
+        _draw_seen_blobs(ax, diagnostics.blobs)
+        _draw_candidates(ax, diagnostics.candidates)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)  # the image's way up: row 0 at the top
+    ax.set_title("What the search saw", fontsize=11, loc="left")
+    text = fig.add_subplot(grid[0, 1])
+    text.set_axis_off()
+    text.text(
+        0.0,
+        1.0,
+        detection_failure_text(diagnostics, message),
+        va="top",
+        ha="left",
+        fontsize=8.5,
+        family="monospace",
+        transform=text.transAxes,
+    )
+    fig.suptitle("Board not found", fontsize=13, color="tab:red")
+    return _png(fig)
+
+
+def _draw_seen_blobs(ax: Axes, blobs: Any) -> None:
+    """Each polarity's blobs as circles of their diameter, one colour per polarity."""
+    from matplotlib.collections import PatchCollection
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Circle
+
+    for seen in blobs:
+        colour = _BLOB_COLOURS.get(seen.polarity, "tab:gray")
+        circles = [
+            Circle((float(x), float(y)), 0.5 * float(d))
+            for (x, y), d in zip(seen.centres_px, seen.diameters_px, strict=True)
+        ]
+        ax.add_collection(
+            PatchCollection(circles, facecolor="none", edgecolor=colour, linewidth=1.2)
+        )
+        # A collection of circles has no legend entry of its own: a stand-in marker.
+        ax.add_line(
+            Line2D(
+                [],
+                [],
+                ls="",
+                marker="o",
+                mfc="none",
+                mec=colour,
+                label=f"{len(circles)} {seen.polarity} blobs seen",
+            )
+        )
+
+
+def _draw_candidates(ax: Axes, candidates: Any) -> None:
+    """Each refused candidate grid: its points joined in order, its number at its first
+    point, its finder and polarity in the legend."""
+    for k, cand in enumerate(candidates):
+        colour = _CANDIDATE_COLOURS[k % len(_CANDIDATE_COLOURS)]
+        pts = np.asarray(cand.points_px, dtype=np.float64).reshape(-1, 2)
+        ax.plot(
+            pts[:, 0],
+            pts[:, 1],
+            "o-",
+            color=colour,
+            lw=1.0,
+            ms=2.5,
+            alpha=0.85,
+            label=f"{k + 1}: {cand.method}, {cand.polarity} dots ({len(pts)} points)",
+        )
+        if len(pts):
+            ax.annotate(
+                str(k + 1),
+                pts[0],
+                xytext=(-6, -6),
+                textcoords="offset points",
+                ha="right",
+                color="w",
+                fontsize=9,
+                fontweight="bold",
+                bbox={"boxstyle": "round,pad=0.2", "fc": colour, "ec": "none"},
+            )
+
+
+def detection_failure_text(diagnostics: Any, message: str, width: int = 62, most: int = 10) -> str:
+    """The failure figure's text panel: the error, the blobs seen and why each candidate
+    grid was refused (the first `most` of them: the panel holds no more)."""
+    paragraphs = [textwrap.fill(f"Error: {message}", width), ""]
+    if diagnostics is None:
+        paragraphs.append("(no record of what the search saw)")
+        return "\n".join(paragraphs)
+    b = diagnostics.board
+    w, h = diagnostics.image_size
+    paragraphs.append(f"Looking for {b.cols} x {b.rows} dots in the {w} x {h} image.")
+    for seen in diagnostics.blobs:
+        d = np.asarray(seen.diameters_px, dtype=np.float64)
+        size = f", about {float(np.median(d)):.0f} px across" if d.size else ""
+        paragraphs.append(f"Blobs seen: {len(d)} {seen.polarity}{size}")
+    paragraphs.append("")
+    if not diagnostics.candidates:
+        paragraphs.append("No candidate grid was put forward.")
+    else:
+        paragraphs.append("Candidate grids refused:")
+        for k, cand in enumerate(diagnostics.candidates[:most]):
+            paragraphs.append(
+                textwrap.fill(
+                    f"{k + 1}. {cand.method} ({cand.polarity} dots): {cand.reason}",
+                    width,
+                    subsequent_indent="   ",
+                )
+            )
+        if len(diagnostics.candidates) > most:
+            paragraphs.append(f"... and {len(diagnostics.candidates) - most} more")
+    return "\n".join(paragraphs)
+
+
+def write_detection_failure(
+    out_dir: str | os.PathLike[str], image: Any, diagnostics: Any, message: str
+) -> Path:
+    """Writes ``detection_failure_figure`` as detection_failed.png into `out_dir` (created if
+    need be), atomically; returns its path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figure = detection_failure_figure(image, diagnostics, message)
+    return atomic_write(out / DETECTION_FAILED_PNG, figure)
