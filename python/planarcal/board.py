@@ -4,35 +4,51 @@ World coordinates are those of the board: the origin is the centre of the origin
 (point 0), X runs along a row (across the columns), Y down a column (across the rows), both
 in millimetres, as printed and seen from the front. Point k = r * cols + c is at
 (c * pitch, r * pitch): row-major order from the origin circle.
+
+Two layouts, OpenCV's two:
+
+* ``"symmetric"``: dot (c, r) at (c * pitch, r * pitch).
+* ``"asymmetric"`` (OpenCV's ``CALIB_CB_ASYMMETRIC_GRID``, the same world coordinates as its
+  documentation's ``((2 c + r % 2) * s, r * s)``): every other row is shifted by half a
+  row's spacing, so dot (c, r) is at ((2 c + r % 2) * pitch, r * pitch). ``pitch`` is OpenCV's
+  square size: the distance between rows, half the distance between dots along a row; the
+  nearest neighbours are the diagonal ones, pitch * sqrt(2) apart.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.errors import BoardError
 
+Layout = Literal["symmetric", "asymmetric"]
+LAYOUTS: tuple[Layout, ...] = ("symmetric", "asymmetric")
+
 
 @dataclasses.dataclass(frozen=True)
 class CircleGridBoard:
-    """A symmetric grid of `cols` x `rows` dark dots of `diameter` mm, `pitch` mm apart.
+    """A grid of `cols` x `rows` dark dots of `diameter` mm, `pitch` mm apart.
 
     The defaults are the paper's board (14 x 10 dots, 10 mm, 20 mm apart). With
     ``origin_marker=True`` the origin circle is printed larger (``marker_diameter``, by default
-    1.5 times the others), as on common industrial boards: it fixes the board's orientation.
+    1.5 times the others, at most the distance to its nearest neighbour), as on common
+    industrial boards: it fixes the board's orientation. ``diameter=None`` leaves the dots'
+    size unknown: detection measures it from the image (a board to print needs it).
+    ``layout`` is ``"symmetric"`` or ``"asymmetric"`` (see the module's docstring).
     """
 
     cols: int = 14
     rows: int = 10
     pitch: float = 20.0
-    diameter: float = 10.0
+    diameter: float | None = 10.0
     origin_marker: bool = False
     marker_diameter: float | None = None
+    layout: Layout = "symmetric"
 
     def __post_init__(self) -> None:
         for name in ("cols", "rows"):
@@ -41,36 +57,73 @@ class CircleGridBoard:
                 raise BoardError(f"{name} must be a whole number of dots, got {value!r}")
             if value < 2:
                 raise BoardError(f"{name} must be at least 2, got {value}")
-        for name in ("pitch", "diameter"):
+        if self.layout not in LAYOUTS:
+            raise BoardError(f"layout must be 'symmetric' or 'asymmetric', got {self.layout!r}")
+        if self.layout == "asymmetric" and self.rows < 3:
+            raise BoardError(f"an asymmetric grid needs at least 3 rows, got {self.rows}")
+        for name in ("pitch", "diameter", "marker_diameter"):
             value = getattr(self, name)
-            if not isinstance(value, int | float | np.floating | np.integer) or not (
-                math.isfinite(value) and value > 0
+            if value is None and name != "pitch":
+                continue
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float | np.floating | np.integer)
+                or not (math.isfinite(value) and value > 0)
             ):
                 raise BoardError(f"{name} must be a positive length in mm, got {value!r}")
-        if self.diameter >= self.pitch:
+        spacing = self.neighbour_distance
+        if self.diameter is not None and self.diameter >= spacing:
             raise BoardError(
-                f"dots of {self.diameter} mm do not fit {self.pitch} mm apart: "
-                "the diameter must be smaller than the pitch"
+                f"dots of {self.diameter} mm do not fit {spacing:g} mm apart: the diameter "
+                "must be smaller than the distance between neighbouring dots"
             )
         if self.marker_diameter is not None and not self.origin_marker:
             raise BoardError("marker_diameter is given but origin_marker is False")
-        if self.origin_marker:
+        if self.origin_marker and self.diameter is not None:
             marker = self.origin_marker_diameter
-            if not (math.isfinite(marker) and self.diameter * 1.2 <= marker < self.pitch):
+            if not (self.diameter * 1.2 <= marker <= spacing):
                 raise BoardError(
-                    f"the origin marker ({marker} mm) must be at least 1.2 times the dots "
-                    f"({self.diameter} mm), to be told apart, and smaller than the pitch "
-                    f"({self.pitch} mm)"
+                    f"the origin marker ({marker:g} mm) must be at least 1.2 times the dots "
+                    f"({self.diameter:g} mm), to be told apart, and at most the distance to "
+                    f"its neighbours ({spacing:g} mm)"
                 )
+        elif (
+            self.origin_marker
+            and self.marker_diameter is not None
+            and self.marker_diameter > spacing
+        ):
+            raise BoardError(
+                f"the origin marker ({self.marker_diameter:g} mm) must be at most the "
+                f"distance to its neighbours ({spacing:g} mm)"
+            )
+
+    @property
+    def neighbour_distance(self) -> float:
+        """Distance between nearest neighbouring dots in mm (the pitch, or pitch * sqrt(2)
+        in the asymmetric layout, whose nearest neighbours are diagonal)."""
+        if self.layout == "asymmetric":
+            return float(self.pitch) * math.sqrt(2.0)
+        return float(self.pitch)
+
+    def dots_mm(self) -> float:
+        """The dots' diameter in mm; BoardError when the board leaves it unknown."""
+        if self.diameter is None:
+            raise BoardError(
+                "the board's dot diameter is unknown (diameter=None): give it (--diameter) "
+                "to print or render the board"
+            )
+        return float(self.diameter)
 
     @property
     def origin_marker_diameter(self) -> float:
-        """Diameter of the origin circle in mm (the other dots' when there is no marker)."""
+        """Diameter of the origin circle in mm (the other dots' when there is no marker);
+        BoardError when it depends on an unknown dot diameter."""
+        if self.origin_marker and self.marker_diameter is not None:
+            return float(self.marker_diameter)
+        d = self.dots_mm()
         if not self.origin_marker:
-            return float(self.diameter)
-        if self.marker_diameter is None:
-            return min(1.5 * self.diameter, 0.5 * (self.diameter + self.pitch))
-        return float(self.marker_diameter)
+            return d
+        return min(1.5 * d, 0.5 * (d + self.neighbour_distance))
 
     @property
     def n_points(self) -> int:
@@ -79,22 +132,33 @@ class CircleGridBoard:
     @property
     def extent(self) -> tuple[float, float]:
         """Width and height of the dot field in mm, from outer edge to outer edge."""
-        biggest = max(self.diameter, self.origin_marker_diameter)
-        return (
-            (self.cols - 1) * self.pitch + biggest,
-            (self.rows - 1) * self.pitch + biggest,
-        )
+        biggest = max(self.dots_mm(), self.origin_marker_diameter)
+        span = self.world_points().max(axis=0)
+        return (float(span[0]) + biggest, float(span[1]) + biggest)
 
     def world_points(self) -> NDArray[np.float64]:
         """Centres of the dots in mm, (rows * cols, 2), row-major from the origin circle."""
         r, c = np.divmod(np.arange(self.n_points), self.cols)
+        if self.layout == "asymmetric":
+            c = 2 * c + r % 2
         return np.column_stack([c * float(self.pitch), r * float(self.pitch)])
 
     def dot_diameters(self) -> NDArray[np.float64]:
         """Diameter of each dot in mm, in the order of world_points()."""
-        d = np.full(self.n_points, float(self.diameter))
+        d = np.full(self.n_points, self.dots_mm())
         d[0] = self.origin_marker_diameter
         return d
+
+    def describe(self) -> str:
+        """One line for people: '10 x 8 dots of 15 mm, 25 mm apart (asymmetric), origin
+        marker'."""
+        size = "of unknown size" if self.diameter is None else f"of {self.diameter:g} mm"
+        text = f"{self.cols} x {self.rows} dots {size}, {self.pitch:g} mm apart"
+        if self.layout == "asymmetric":
+            text += " (asymmetric grid: rows offset by half a dot spacing)"
+        if self.origin_marker:
+            text += ", origin marker"
+        return text
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready description (see from_dict)."""
@@ -102,11 +166,12 @@ class CircleGridBoard:
             "cols": int(self.cols),
             "rows": int(self.rows),
             "pitch_mm": float(self.pitch),
-            "diameter_mm": float(self.diameter),
+            "diameter_mm": None if self.diameter is None else float(self.diameter),
             "origin_marker": bool(self.origin_marker),
             "marker_diameter_mm": None
             if self.marker_diameter is None
             else float(self.marker_diameter),
+            "layout": self.layout,
         }
 
     @classmethod
@@ -120,6 +185,7 @@ class CircleGridBoard:
                 diameter=data["diameter_mm"],
                 origin_marker=data.get("origin_marker", False),
                 marker_diameter=data.get("marker_diameter_mm"),
+                layout=data.get("layout", "symmetric"),
             )
         except (KeyError, TypeError, AttributeError) as e:
             raise BoardError(f"not a board description ({e!r}): {data!r}") from None

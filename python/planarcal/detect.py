@@ -101,6 +101,37 @@ def detect_board(
     raise BoardNotFoundError(_explain(grey, board, polarities, refusals))
 
 
+@dataclasses.dataclass(frozen=True)
+class SeenBlobs:
+    """The blobs one polarity's search saw: centres (N, 2) px and diameters (N,) px."""
+
+    polarity: Literal["dark", "light"]
+    centres_px: F64
+    diameters_px: F64
+
+
+@dataclasses.dataclass(frozen=True)
+class RefusedCandidate:
+    """A grid a finder put forward and the check that refused it."""
+
+    method: str
+    polarity: Literal["dark", "light"]
+    points_px: F64
+    """The candidate's dots (K, 2), px: as many as were found (possibly fewer than the board's)."""
+    reason: str
+
+
+@dataclasses.dataclass(frozen=True)
+class DetectionDiagnostics:
+    """What a failed search saw (``BoardNotFoundError.diagnostics``)."""
+
+    board: CircleGridBoard
+    image_size: tuple[int, int]
+    """(width, height) px."""
+    blobs: tuple[SeenBlobs, ...]
+    candidates: tuple[RefusedCandidate, ...]
+
+
 class _RefusedError(Exception):
     """A candidate grid that failed a check (the reason is the message)."""
 
