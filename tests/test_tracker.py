@@ -21,7 +21,7 @@ from planarcal import synth
 from planarcal.calibration import Calibration
 from planarcal.capture import Camera
 from planarcal.detect import detect_board
-from planarcal.errors import CameraError
+from planarcal.errors import CameraError, IntrinsicsError
 from planarcal.tracker import FrameResult, Tracker
 
 N_FRAMES = 24
@@ -36,6 +36,31 @@ def moving_objects(k: int) -> list[synth.SceneObject]:
     ]
 
 
+def write_video(path: Path, frames: list[np.ndarray]) -> Path:
+    """A real video file (MJPEG in AVI, near-lossless, grey) of `frames`."""
+    height, width = frames[0].shape[:2]
+    writer = cv2.VideoWriter(
+        str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (width, height), False
+    )
+    writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 100)
+    for frame in frames:
+        writer.write(frame)
+    writer.release()
+    return path
+
+
+def render_moving(k: int) -> synth.RenderedScene:
+    """Frame k of the moving parts, seen by the paper's camera (1280 x 720)."""
+    return synth.render_scene(
+        synth.PAPER_CAMERA,
+        synth.PAPER_POSE,
+        board=None,
+        objects=moving_objects(k),
+        seed=k,
+        **synth.PAPER_EFFECTS,
+    )
+
+
 @pytest.fixture(scope="module")
 def calibration() -> Calibration:
     scene = synth.paper_scene(0).calibration
@@ -46,24 +71,10 @@ def calibration() -> Calibration:
 def video(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, list[np.ndarray]]:
     """A real video file (MJPEG in AVI, near-lossless) of the moving parts, the truth of each
     frame (frames x 3 x 2, mm) and the frames themselves."""
-    path = tmp_path_factory.mktemp("video") / "moving.avi"
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (1280, 720), False)
-    writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 100)
-    truth, frames = [], []
-    for k in range(N_FRAMES):
-        scene = synth.render_scene(
-            synth.PAPER_CAMERA,
-            synth.PAPER_POSE,
-            board=None,
-            objects=moving_objects(k),
-            seed=k,
-            **synth.PAPER_EFFECTS,
-        )
-        writer.write(scene.image)
-        truth.append(scene.object_centroids_mm)
-        frames.append(scene.image)
-    writer.release()
-    return path, np.array(truth), frames
+    scenes = [render_moving(k) for k in range(N_FRAMES)]
+    frames = [scene.image for scene in scenes]
+    path = write_video(tmp_path_factory.mktemp("video") / "moving.avi", frames)
+    return path, np.array([scene.object_centroids_mm for scene in scenes]), frames
 
 
 def check_tracks(results: list[FrameResult], truth: np.ndarray, tol_mm: float) -> None:
@@ -117,6 +128,13 @@ def test_max_frames_and_a_tracker_iterates_once(calibration, video) -> None:  # 
     assert all(len(p) == 2 for p in t.tracks.values())
 
 
+def test_a_height_without_intrinsics_is_refused_before_the_first_frame(calibration, video) -> None:  # type: ignore[no-untyped-def]
+    path, _, _ = video
+    # Not counted frame after frame as a failure: no frame could ever succeed.
+    with pytest.raises(IntrinsicsError, match="needs camera intrinsics"):
+        Tracker(calibration, path, height_mm=20.0)
+
+
 def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
     _, truth, frames = video
     for k, frame in enumerate(frames[:8]):
@@ -128,6 +146,24 @@ def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(calibration, video, 
         results = list(t)
     assert [r.index for r in results] == [0, 1, 2, 3, 5, 6, 7]
     assert t.stats.corrupt == 1 and t.last_error is not None
+    check_tracks(results, truth, 0.15)
+
+
+def test_max_frames_counts_the_frames_read_failed_ones_too(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    _, truth, frames = video
+    for k, frame in enumerate(frames[:8]):
+        cv2.imwrite(str(tmp_path / f"frame{k:03d}.png"), frame)
+    for k in (2, 3):  # damaged on disk: truncated PNGs
+        damaged = tmp_path / f"frame{k:03d}.png"
+        damaged.write_bytes(damaged.read_bytes()[:2000])
+    with Tracker(calibration, tmp_path, max_frames=5) as t:
+        results = list(t)
+    # The first five frames of the source, not five good ones.
+    assert [r.index for r in results] == [0, 1, 4]
+    s = t.stats
+    assert (s.read, s.frames, s.corrupt, s.failed) == (5, 3, 2, 0)
+    assert t.first_error is not None and "frame003" not in str(t.first_error)
+    assert t.last_error is not None and "frame003" in str(t.last_error)
     check_tracks(results, truth, 0.15)
 
 
@@ -144,6 +180,7 @@ class FlakyCamera:
         if 1 < FlakyCamera.opened <= 1 + FlakyCamera.refuse:
             raise CameraError(f"{source}: no such device (injected)")
         self.inner = Camera(source, timeout_s=timeout_s, color=color)
+        self.resolution = self.inner.resolution
         self.source = source
         self.label = str(source)
         self.live = True
@@ -173,12 +210,12 @@ def test_a_camera_that_drops_out_is_reopened_with_back_off(calibration, video, m
     path, truth, _ = video
     FlakyCamera.opened = 0
     monkeypatch.setattr(tracker_module, "Camera", FlakyCamera)
-    # A live source drops frames the loop is too slow for: keep it from falling behind here
-    # by reading at most 30 frames in all.
+    # max_frames counts the frames read: those a live source drops when the loop is behind
+    # (the reader decodes this file faster than the loop takes frames) count too.
     with Tracker(calibration, str(path), max_frames=20) as t:
         results = list(t)
     assert t.stats.reconnects == 1 and FlakyCamera.opened == 4
-    assert len(results) == 20
+    assert t.stats.read == 20 and len(results) + t.stats.dropped == 20
     # The reopened camera starts its video from the beginning: indices go on counting.
     assert [r.index for r in results[:6]] == list(range(6))
     for r in results:
@@ -209,6 +246,7 @@ class LateCamera(FlakyCamera):
         if LateCamera.opened <= LateCamera.absent:
             raise CameraError(f"{source}: connection refused (injected)")
         self.inner = Camera(LateCamera.target, timeout_s=timeout_s, color=color)
+        self.resolution = self.inner.resolution
         self.source = self.label = source
         self.live = True
         self.ended = self.closed = False
@@ -435,3 +473,55 @@ def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(calibration, t
     assert bad.returncode == 1 and "port" in bad.stderr
     bad = _run("--source", tmp_path / "missing.mp4", "--calibration", calib)
     assert bad.returncode == 1 and "missing.mp4" in bad.stderr
+
+
+def test_run_max_frames_counts_the_frames_read(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    _, truth, frames = video
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, frame in enumerate(frames[:8]):
+        cv2.imwrite(str(folder / f"frame{k:03d}.png"), frame)
+    damaged = folder / "frame001.png"
+    damaged.write_bytes(damaged.read_bytes()[:2000])
+    calib = calibration.save(tmp_path / "calib.json")
+    result = _run("--source", folder, "--calibration", calib, "--max-frames", 4)
+    assert result.returncode == 0, result.stderr
+    lines = _lines(result.stdout)
+    assert [line["frame"] for line in lines] == [0, 2, 3]
+    _check_lines(lines, truth, 0.15)
+    figures = json.loads(result.stderr.rsplit("planarcal run: ", 1)[1])
+    assert (figures["read"], figures["frames"], figures["corrupt"]) == (4, 3, 1)
+    assert "frame001.png" in figures["first_fault"]
+
+
+def test_run_whose_every_frame_fails_exits_1_with_the_reason(video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    from planarcal.homography import transform_points
+
+    path, _, _ = video
+    # A calibration from another camera position: its horizon crosses these frames at
+    # y = 400 px, and one of the parts is always below it (it sees no point of the plane
+    # there), so every frame fails.
+    h = np.array([[2.0, 0.0, 400.0], [0.0, 2.0, 100.0], [0.0, 0.005, 1.0]])
+    world = synth.PAPER_BOARD.world_points()
+    wrong = Calibration(world, transform_points(h, world), image_size=(1280, 720), lens="none")
+    calib = wrong.save(tmp_path / "wrong.json")
+    result = _run("--source", path, "--calibration", calib, "--max-frames", 6)
+    assert result.returncode == 1, result.stderr
+    assert result.stdout == ""
+    error = result.stderr.strip().splitlines()[-1]
+    assert error.startswith("planarcal run: error: every frame failed: 6 of the 6 frames read")
+    assert "0 undecodable or of the wrong size, 6 failed in detection" in error
+    assert "first fault: " in error and "horizon" in error
+    summary = next(
+        line for line in result.stderr.splitlines() if line.startswith("planarcal run: {")
+    )
+    figures = json.loads(summary.split("planarcal run: ", 1)[1])
+    assert (figures["read"], figures["frames"], figures["failed"]) == (6, 0, 6)
+    # Without --max-frames the file is read to its end: the same verdict.
+    result = _run("--source", path, "--calibration", calib)
+    assert result.returncode == 1
+    assert f"every frame failed: {N_FRAMES} of the {N_FRAMES} frames read" in result.stderr

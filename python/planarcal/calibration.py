@@ -44,6 +44,7 @@ from planarcal.board import CircleGridBoard
 from planarcal.errors import (
     BoardError,
     CalibrationFileError,
+    FrameSizeError,
     HomographyError,
     IntrinsicsError,
     LensModelError,
@@ -337,6 +338,83 @@ class Calibration:
         )
         return cal
 
+    def for_frame_size(self, width: int, height: int) -> Calibration:
+        """This calibration for frames of ``width`` x ``height`` px showing the same view
+        uniformly scaled: a camera switched deliberately to another resolution of the same
+        aspect ratio (640 x 480 -> 1280 x 960). The same pixel of the scene maps to the same
+        millimetres: H, the lens model (or the intrinsics) and the points are scaled with the
+        pixels (pixel centres at whole numbers: u becomes s u + (s - 1) / 2); the world frame
+        is untouched. Returns self for the size it was made on.
+
+        FrameSizeError for another aspect ratio (that is a cropped view, not a scaled one:
+        calibrate again) or for a calibration that records no image size."""
+        size = _given_size((width, height))
+        if self.image_size is None:
+            raise FrameSizeError(
+                f"this calibration records no image size (an old file, or made from bare "
+                f"points without image_size=): it cannot be rescaled to {size[0]} x {size[1]} "
+                "px frames; calibrate at that resolution",
+                size,
+                None,
+            )
+        if size == self.image_size:
+            return self
+        if not _same_aspect(size, self.image_size):
+            raise FrameSizeError(
+                f"cannot rescale a calibration made on {_size_text(self.image_size)} frames "
+                f"to {_size_text(size)}: the aspect ratio differs ({_aspect_text(size)} "
+                f"against {_aspect_text(self.image_size)}), so the view is cropped, not "
+                f"scaled; calibrate again at {size[0]} x {size[1]}",
+                size,
+                self.image_size,
+            )
+        return self._scaled(self.image_size, size)
+
+    def _scaled(self, made_on: tuple[int, int], size: tuple[int, int]) -> Calibration:
+        """This calibration, made on frames of `made_on`, with every pixel quantity scaled for
+        frames of `size` (the same aspect ratio)."""
+        s = size[0] / made_on[0]
+        a = _pixel_scaling(s)
+        h = a @ self._h  # world -> old pixels -> new pixels; h33 is unchanged
+        image = np.ascontiguousarray(_affine(a, self._image))
+        intrinsics = self.intrinsics
+        if intrinsics is not None:
+            intrinsics = _scaled_intrinsics(intrinsics, s, size)
+        lens = self._fit.plane.lens
+        centre = _affine(a, np.array([lens[:2]]))[0]
+        scaled_lens = (float(centre[0]), float(centre[1]), s * lens[2], lens[3], lens[4])
+        plane = _plane_at(h, self._world, image, size, self._fit.lens, scaled_lens, intrinsics)
+        candidates = [
+            dataclasses.replace(c, loo_mean_px=s * c.loo_mean_px, sigma_px=s * c.sigma_px)
+            for c in self._fit.candidates
+        ]
+        note = f"{self._fit.note} (rescaled from {_size_text(made_on)} frames)"
+        fit = _Fit(plane, h, self._fit.lens, candidates, note)
+        cal = Calibration.__new__(Calibration)
+        cal._init(
+            self._world,
+            image,
+            fit,
+            self.solver,
+            self.refine,
+            self.board,
+            size,
+            intrinsics,
+            self.world_scale,
+        )
+        return cal
+
+    def check_image_size(self, image_size: tuple[int, int], *, what: str = "image") -> None:
+        """Raises FrameSizeError, naming both sizes, unless ``image_size`` (width, height, px)
+        is the size this calibration was made on: pixels of another size map to the wrong
+        millimetres. A calibration that records no size (an old file, or one made from bare
+        points) cannot tell, and accepts any. ``what`` names the picture in the message
+        ("image", "frame")."""
+        size = _given_size(image_size)
+        if self.image_size is None or size == self.image_size:
+            return
+        raise FrameSizeError(_size_mismatch(size, self.image_size, what), size, self.image_size)
+
     # -- the homography and the mapping -----------------------------------------------------
 
     @property
@@ -403,8 +481,12 @@ class Calibration:
         height: float | ArrayLike = 0.0,
         return_std: bool = False,
         pixel_sigma: float = 0.0,
+        image_size: tuple[int, int] | None = None,
     ) -> Any:
         """Pixel positions -> plane positions in mm: (N, 2) -> (N, 2), or (2,) -> (2,).
+
+        ``image_size``: (width, height) of the image the pixels come from; FrameSizeError if
+        the calibration was made on another size (see ``check_image_size``).
 
         ``height``: the points are ``height`` mm above the plane (an object's top face;
         scalar or one per point), not on it: located where they really are. Needs camera
@@ -414,6 +496,8 @@ class Calibration:
         (sqrt of the covariance's trace: the RMS distance from the truth) from the fit's
         uncertainty, plus the pixel's own noise of ``pixel_sigma`` px per coordinate.
         """
+        if image_size is not None:
+            self.check_image_size(image_size)
         arr = np.asarray(points_px, dtype=np.float64)
         single = arr.ndim == 1
         if single:
@@ -455,6 +539,9 @@ class Calibration:
         if self.intrinsics is None and height == 0.0:
             plane = self._fit.plane
             return lambda px: plane.image_to_world_std(px, 0.0)
+        if height != 0.0:
+            # IntrinsicsError now, rather than on every frame with an object in it.
+            _ = self.camera_pose
         return lambda px: self.image_to_world(px, height=height, return_std=True)
 
     def world_covariance(self, points_px: ArrayLike, *, pixel_sigma: float = 0.0) -> F64:
@@ -761,6 +848,80 @@ def _image_size(size: Any) -> tuple[int, int] | None:
     return int(w), int(h)
 
 
+def _given_size(size: Any) -> tuple[int, int]:
+    """A (width, height) that must be there: _image_size without None."""
+    checked = _image_size(size)
+    if checked is None:
+        raise ValueError("image_size must be (width, height), got None")
+    return checked
+
+
+def _size_text(size: tuple[int, int]) -> str:
+    return f"{size[0]} x {size[1]} px"
+
+
+def _same_aspect(a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Exactly the same shape (so one is the other uniformly scaled)."""
+    return a[0] * b[1] == a[1] * b[0]
+
+
+def _aspect_text(size: tuple[int, int]) -> str:
+    """The aspect ratio in lowest terms: 1280 x 720 -> "16:9"."""
+    d = math.gcd(*size)
+    return f"{size[0] // d}:{size[1] // d}"
+
+
+def _size_mismatch(size: tuple[int, int], made_on: tuple[int, int], what: str) -> str:
+    """Why a picture of `size` cannot go through a calibration made on `made_on`, and what to
+    do: rescale the calibration for a deliberate change of resolution, else calibrate again."""
+    head = (
+        f"this {what} is {_size_text(size)} but the calibration was made on "
+        f"{_size_text(made_on)} {what}s: its pixels would map to the wrong millimetres. "
+    )
+    if _same_aspect(size, made_on):
+        return head + (
+            f"Calibrate at {size[0]} x {size[1]}, or, if the camera's resolution was changed "
+            f"deliberately (the same view, scaled), use cal.for_frame_size({size[0]}, "
+            f"{size[1]}) (and save it for planarcal run / locate)"
+        )
+    return head + (
+        f"Calibrate again at {size[0]} x {size[1]}: another aspect ratio "
+        f"({_aspect_text(size)} against {_aspect_text(made_on)}) is a cropped view, which "
+        "cal.for_frame_size cannot rescale to"
+    )
+
+
+def _pixel_scaling(s: float) -> F64:
+    """Old pixels -> new pixels of an image scaled by `s`, pixel centres at whole numbers: the
+    image's outer edges (-0.5 and width - 0.5) go to the new ones."""
+    t = (s - 1.0) / 2.0
+    return np.array([[s, 0.0, t], [0.0, s, t], [0.0, 0.0, 1.0]])
+
+
+def _affine(a: F64, points: F64) -> F64:
+    """Points (N, 2) through an affine 3 x 3 matrix."""
+    out: F64 = points @ a[:2, :2].T + a[:2, 2]
+    return out
+
+
+def _scaled_intrinsics(
+    intrinsics: CameraIntrinsics, s: float, size: tuple[int, int]
+) -> CameraIntrinsics:
+    """The same camera at a resolution scaled by `s`: K scaled with the pixels; the distortion
+    coefficients act on normalised coordinates and stay; the RMS errors scale."""
+    from planarcal.intrinsics import CameraIntrinsics
+
+    per_view = intrinsics.per_view_rms_px
+    return CameraIntrinsics(
+        _pixel_scaling(s) @ intrinsics.matrix,
+        np.array(intrinsics.dist_coeffs),
+        size,
+        None if intrinsics.rms_px is None else s * intrinsics.rms_px,
+        intrinsics.n_views,
+        None if per_view is None else tuple(s * v for v in per_view),
+    )
+
+
 def _positive_mm(name: str, value: Any) -> float:
     try:
         v = float(value)
@@ -818,6 +979,31 @@ def _plain_at(h: F64, world: F64, image: F64, size: Any) -> Any:
     return _core.FittedPlane.at(
         h, centre, 0.5 * math.hypot(w, hgt), 0.0, 0.0, world, image, "none", (w, hgt)
     )
+
+
+def _plane_at(
+    h: F64,
+    world: F64,
+    image: F64,
+    size: tuple[int, int] | None,
+    lens: str,
+    lens_params: tuple[float, float, float, float, float],
+    intrinsics: CameraIntrinsics | None,
+) -> Any:
+    """The core's model of a calibration at known parameters (its covariance on these
+    points): H, the lens model `lens` with its (centre x, centre y, scale, k1, k2), or the
+    intrinsics."""
+    if lens == "intrinsics":
+        if intrinsics is None:
+            raise IntrinsicsError("lens model 'intrinsics' without the intrinsics")
+        return _plain_at(h, world, intrinsics.undistort_points(image), size)
+    if lens == "none":
+        return _plain_at(h, world, image, size)
+    if size is None:
+        raise LensModelError(f"lens model {lens!r} without the image size it is centred on")
+    cx, cy, scale, k1, k2 = lens_params
+    frame = (float(size[0]), float(size[1]))
+    return _core.FittedPlane.at(h, (cx, cy), scale, k1, k2, world, image, lens, frame)
 
 
 def _coverage(image: F64, size: tuple[int, int]) -> float:
@@ -977,33 +1163,28 @@ def _fit_from_dict(
     except (KeyError, TypeError, ValueError, IndexError) as e:
         raise CalibrationFileError(f"{source}: bad world_scale or lens_candidates: {e!r}") from None
     intrinsics = None
+    params = (0.0, 0.0, 1.0, 0.0, 0.0)  # unused without a lens model
     try:
         if lens == "intrinsics":
             from planarcal.intrinsics import CameraIntrinsics
 
             intrinsics = CameraIntrinsics.from_dict(intr_data)
-            plane = _plain_at(h, world, intrinsics.undistort_points(image), size)
-        elif lens == "none":
-            plane = _plain_at(h, world, image, size)
-        elif lens in LENS_MODELS:
+        elif lens in LENS_MODELS[1:]:
             if size is None or not isinstance(lens_data, dict):
                 raise CalibrationFileError(
                     f"{source}: lens model {lens!r} without its parameters or the image size"
                 )
             cx, cy = (float(v) for v in lens_data["centre_px"])
-            plane = _core.FittedPlane.at(
-                h,
-                (cx, cy),
+            params = (
+                cx,
+                cy,
                 float(lens_data["scale_px"]),
                 float(lens_data["k1"]),
                 float(lens_data["k2"]),
-                world,
-                image,
-                lens,
-                (float(size[0]), float(size[1])),
             )
-        else:
+        elif lens != "none":
             raise CalibrationFileError(f"{source}: unknown lens model {lens!r}")
+        plane = _plane_at(h, world, image, size, str(lens), params, intrinsics)
     except (IntrinsicsError, LensModelError, HomographyError) as e:
         raise CalibrationFileError(f"{source}: {e}") from None
     except (KeyError, TypeError, ValueError) as e:

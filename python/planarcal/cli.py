@@ -451,7 +451,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Read frames from SOURCE, locate the objects in each in mm with the "
         "calibration, keep their IDs from frame to frame, and write one JSON line per frame "
         "to the output. Survives bad frames and a camera that drops out; Ctrl-C or SIGTERM "
-        "end it cleanly with a summary on stderr.",
+        "end it cleanly with a summary on stderr. Exits 1 if every frame failed, and at once "
+        "if the frames are not of the size the calibration was made on.",
     )
     p.add_argument(
         "--source",
@@ -464,7 +465,13 @@ def build_parser() -> argparse.ArgumentParser:
         default="-",
         help="- (stdout, the default), a file (.jsonl), tcp://host:port or udp://host:port",
     )
-    p.add_argument("--max-frames", type=int, default=None, help="stop after N frames")
+    p.add_argument(
+        "--max-frames",
+        type=int,
+        default=None,
+        metavar="N",
+        help="stop after reading N frames from the source (failed and skipped ones count too)",
+    )
     p.add_argument(
         "--fps-report",
         action="store_true",

@@ -6,6 +6,8 @@ applied, comes from the core too)."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from planarcal._core import (
     DegenerateError,
     HomographyError,
@@ -19,6 +21,7 @@ __all__ = [
     "CalibrationFileError",
     "CameraError",
     "DegenerateError",
+    "FrameSizeError",
     "HomographyError",
     "ImageError",
     "IntrinsicsError",
@@ -41,6 +44,25 @@ class BoardNotFoundError(ValueError):
 
 class CalibrationFileError(ValueError):
     """A calibration file that cannot be loaded: corrupt, truncated, or of another version."""
+
+
+class FrameSizeError(ValueError):
+    """An image or frame of another size than the calibration was made on: its pixels would
+    map to the wrong millimetres. ``frame_size`` and ``calibration_size`` are the two
+    (width, height) in px (``calibration_size`` None when the calibration records none)."""
+
+    def __init__(
+        self,
+        message: str,
+        frame_size: tuple[int, int] | None = None,
+        calibration_size: tuple[int, int] | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.frame_size = frame_size
+        self.calibration_size = calibration_size
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (str(self), self.frame_size, self.calibration_size))
 
 
 class CameraError(OSError):

@@ -10,7 +10,7 @@ IDs follow reading order: rows of objects from the top of the image, left to rig
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,6 +18,9 @@ from numpy.typing import NDArray
 from planarcal import _core
 from planarcal.errors import ImageError
 from planarcal.images import as_grey
+
+if TYPE_CHECKING:
+    from planarcal.calibration import Calibration
 
 F64 = NDArray[np.float64]
 
@@ -194,14 +197,19 @@ def _mask(mask: Any, shape: tuple[int, int]) -> NDArray[np.bool_] | None:
 
 
 def locate_objects(
-    image: Any, calibration: Any, *, height_mm: float = 0.0, **options: Any
+    image: Any, calibration: Calibration, *, height_mm: float = 0.0, **options: Any
 ) -> list[DetectedObject]:
     """detect_objects, with each centroid mapped to the plane in mm through `calibration`
     (the paper's Table 5), with its 1-sigma uncertainty (``world_std_mm``). Objects whose
     outlines are ``height_mm`` above the plane (the top face of parts of that height) are
     located where they really are, which needs a calibration with camera intrinsics.
-    Options are those of detect_objects."""
-    objects = detect_objects(image, **options)
+    Options are those of detect_objects.
+
+    FrameSizeError, before any detection, if the image is not of the size the calibration
+    was made on (see ``Calibration.check_image_size``)."""
+    grey = _grey_u8(image)
+    calibration.check_image_size((grey.shape[1], grey.shape[0]))
+    objects = detect_objects(grey, **options)
     if not objects:
         return []
     px = np.array([o.centroid_px for o in objects])

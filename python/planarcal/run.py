@@ -5,6 +5,10 @@ Frames from ``--source`` (a camera index, video file, image folder or stream URL
 a file, or a TCP/UDP peer such as a robot controller). A live progress line (frames, fps,
 objects, drops) is drawn on stderr when it is a terminal. Ctrl-C or SIGTERM end the loop after
 the frame in hand: what was written is flushed, and a summary goes to stderr.
+
+Exit status 1 (after the summary) when every frame read failed, with the count and the first
+and last fault on stderr; at once, before any frame, when the source's frames are not of the
+size the calibration was made on (``FrameSizeError``).
 """
 
 from __future__ import annotations
@@ -94,9 +98,30 @@ def summary(tracker: Tracker, output: Any, received: list[str]) -> dict[str, Any
     if dataclasses.is_dataclass(ostats) and not isinstance(ostats, type):
         out["output"] = {"spec": getattr(output, "spec", None), **dataclasses.asdict(ostats)}
     out["stopped_by"] = received[0] if received else None
+    if tracker.first_error is not None:
+        out["first_fault"] = str(tracker.first_error)
     if tracker.last_error is not None:
         out["last_fault"] = str(tracker.last_error)
     return out
+
+
+def all_frames_failed(tracker: Tracker) -> str | None:
+    """Why the run located nothing when every frame it read failed; None if any frame was
+    processed, or none failed."""
+    s = tracker.stats
+    faults = s.corrupt + s.failed
+    if s.frames or not faults:
+        return None
+    why = (
+        f"every frame failed: {faults} of the {s.read} frames read ({s.corrupt} undecodable "
+        f"or of the wrong size, {s.failed} failed in detection"
+    )
+    why += f", {s.dropped} dropped)" if s.dropped else ")"
+    first, last = tracker.first_error, tracker.last_error
+    why += f"; first fault: {first}"
+    if last is not None and last is not first:
+        why += f"; last fault: {last}"
+    return why
 
 
 def stage_report(stats: LoopStats, serialise_s: float) -> str:
@@ -130,21 +155,23 @@ def main(args: argparse.Namespace) -> int:
     detect: dict[str, Any] = {}
     if args.min_area is not None:
         detect["min_area_px"] = args.min_area
-    output = open_output(args.output)
+    # The tracker first: a source that does not match the calibration is refused before the
+    # output is opened (no empty file, no connection to the controller).
+    tracker = Tracker(
+        calibration,
+        source,
+        height_mm=args.height,
+        max_frames=args.max_frames,
+        max_reconnect_s=args.max_reconnect,
+        detect_options=detect,
+    )
+    try:
+        output = open_output(args.output)
+    except BaseException:
+        tracker.close()
+        raise
     progress = Progress(sys.stderr)
     serialise_s = 0.0
-    try:
-        tracker = Tracker(
-            calibration,
-            source,
-            height_mm=args.height,
-            max_frames=args.max_frames,
-            max_reconnect_s=args.max_reconnect,
-            detect_options=detect,
-        )
-    except BaseException:
-        output.close()
-        raise
     with stop_on_signals(tracker) as received:
         try:
             for result in tracker:
@@ -163,4 +190,8 @@ def main(args: argparse.Namespace) -> int:
     if args.fps_report:
         print(stage_report(tracker.stats, serialise_s), file=sys.stderr)
     print(f"planarcal run: {json.dumps(report, allow_nan=False)}", file=sys.stderr)
+    failure = all_frames_failed(tracker)
+    if failure is not None:
+        print(f"planarcal run: error: {failure}", file=sys.stderr)
+        return 1
     return 0

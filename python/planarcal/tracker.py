@@ -8,8 +8,8 @@ view. Iterating the tracker yields one ``FrameResult`` per frame.
 
 It does not stop on a bad frame:
 
-* a frame that cannot be decoded, or one of the wrong size, is counted (``corrupt``) and
-  skipped;
+* a frame that cannot be decoded, or one whose size differs from the source's, is counted
+  (``corrupt``) and skipped;
 * a camera or stream that stops delivering (unplugged, a stalled network), or that is not
   there yet when the tracker starts (still booting), is opened again with exponential
   back-off (``reconnects``), for as long as it takes, unless ``max_reconnect_s`` says
@@ -18,6 +18,12 @@ It does not stop on a bad frame:
 
 Each fault is logged (logger ``planarcal.tracker``; repeated faults at their 1st, 2nd, 4th,
 8th, ... occurrence, so a stream of bad frames does not flood the log).
+
+It does stop on a source whose frames are not of the size the calibration was made on: that
+is a mistake of setup, not a bad frame, and every frame would map to the wrong millimetres.
+``FrameSizeError`` (naming both sizes) is raised by the constructor when the source is open,
+else by the iteration at the first such frame (a camera that comes back at another
+resolution).
 
 Reading runs on its own thread, a couple of frames ahead, so decoding overlaps with
 processing (OpenCV releases the GIL while it decodes and filters; the core releases it while
@@ -50,7 +56,7 @@ from numpy.typing import NDArray
 from planarcal import _core
 from planarcal.calibration import Calibration
 from planarcal.capture import Camera, Frame
-from planarcal.errors import CameraError
+from planarcal.errors import CameraError, FrameSizeError
 from planarcal.objects import _detect, detect_objects
 
 F64 = NDArray[np.float64]
@@ -122,6 +128,8 @@ class FrameResult:
 class LoopStats:
     """What the loop did so far."""
 
+    read: int = 0
+    """Frames taken from the source: processed, failed, corrupt or dropped."""
     frames: int = 0
     """Frames processed and yielded."""
     objects: int = 0
@@ -174,11 +182,17 @@ class Tracker:
             are; needs a calibration with intrinsics).
         max_jump_mm: the farthest an object may move between frames and keep its ID.
         max_missing: frames an object may go unseen and keep its ID.
-        max_frames: stop after this many frames (None: until the source ends or stop()).
+        max_frames: stop after reading this many frames from the source, whatever became of
+            them (processed, failed, corrupt or dropped; None: until the source ends or
+            stop()).
         max_reconnect_s: give up reopening a source that stopped after this long (None:
             never; a file or folder is never reopened).
         detect_options: passed to detect_objects (min_area_px, blur_sigma, mask, ...).
         timeout_s: the Camera's timeout for each blocking step.
+
+    Raises:
+        FrameSizeError: the source's frames are not of the size the calibration was made on.
+        IntrinsicsError: a height_mm with a calibration made without camera intrinsics.
     """
 
     def __init__(
@@ -219,6 +233,9 @@ class Tracker:
             raise ValueError(
                 f"unknown detect_options {unknown}; detect_objects takes {sorted(_DETECT_OPTIONS)}"
             )
+        # Checked before the source is opened: a height needs the camera's pose.
+        self._map = calibration._frame_mapper(self.height_mm)
+        self._frame_size = calibration.image_size
         self.stats = LoopStats()
         self._timeout_s = timeout_s
         if isinstance(source, Camera):
@@ -235,17 +252,30 @@ class Tracker:
                 # one that dropped out.
                 _log.warning("%s; waiting for it", e)
                 self._camera = None
+        if self._camera is not None:
+            self._check_source_size(self._camera, opened_here=not isinstance(source, Camera))
         self._live = _live_spec(self._spec) if self._camera is None else self._camera.live
         self._ever_opened = self._camera is not None
         self._stop = threading.Event()
         # Bounded: the reader runs at most this many frames ahead of the loop.
         self._queue: queue.Queue[tuple[int, float, Frame] | _End] = queue.Queue(maxsize=2)
         self._reader: threading.Thread | None = None
-        self._map = calibration._frame_mapper(self.height_mm)
         self._tracks = _core.Tracks(self.max_jump_mm, max_missing)
         self._closed = False
+        self.first_error: BaseException | None = None
+        """The first frame-level fault (a corrupt frame, a detector error), for logs."""
         self.last_error: BaseException | None = None
         """The most recent frame-level fault (a corrupt frame, a detector error), for logs."""
+
+    def _check_source_size(self, camera: Camera, *, opened_here: bool) -> None:
+        """FrameSizeError at once if the source's frames are not the calibration's size (a
+        camera this tracker opened is closed first)."""
+        try:
+            self.calibration.check_image_size(camera.resolution, what="frame")
+        except FrameSizeError:
+            if opened_here:
+                camera.close()
+            raise
 
     # -- the loop --------------------------------------------------------------------------
 
@@ -259,8 +289,6 @@ class Tracker:
         self._reader.start()
         try:
             while not self._stop.is_set():
-                if self.max_frames is not None and self.stats.frames >= self.max_frames:
-                    break
                 t0 = time.perf_counter()
                 item = self._next_item()
                 self.stats.stage_s["read"] += time.perf_counter() - t0
@@ -273,9 +301,11 @@ class Tracker:
                 index, stamp, frame = item
                 try:
                     result = self.process(frame, index, stamp)
+                except FrameSizeError:
+                    raise  # not a bad frame: the source does not match the calibration
                 except (ValueError, ArithmeticError) as e:  # a frame the detector chokes on
                     self.stats.failed += 1
-                    self.last_error = e
+                    self._record_fault(e)
                     _log_fault("frame %d failed: %s", self.stats.failed, index, e)
                     continue
                 self.stats.frames += 1
@@ -285,7 +315,11 @@ class Tracker:
             self.close()
 
     def process(self, frame: Frame, index: int = 0, timestamp: float | None = None) -> FrameResult:
-        """One frame's objects, tracked against the frames before it."""
+        """One frame's objects, tracked against the frames before it. FrameSizeError if the
+        frame is not of the size the calibration was made on."""
+        size = (frame.shape[1], frame.shape[0])
+        if self._frame_size is not None and size != self._frame_size:
+            self.calibration.check_image_size(size, what="frame")
         stamp = time.time() if timestamp is None else timestamp
         stage = self.stats.stage_s
         t0 = time.perf_counter()
@@ -342,6 +376,12 @@ class Tracker:
 
     # -- reading (on the reader thread) ------------------------------------------------------
 
+    def _record_fault(self, error: BaseException) -> None:
+        """Keeps the first and the latest frame-level fault (from either thread)."""
+        if self.first_error is None:
+            self.first_error = error
+        self.last_error = error
+
     def _next_item(self) -> tuple[int, float, Frame] | _End | None:
         try:
             return self._queue.get(timeout=0.1)
@@ -364,9 +404,12 @@ class Tracker:
                         pass
 
     def _read_loop(self) -> None:
-        index = 0
+        index = 0  # frames read so far (the next frame's index)
         try:
             while not self._stop.is_set():
+                if self.max_frames is not None and index >= self.max_frames:
+                    self._put(_End())
+                    return
                 camera = self._camera
                 if camera is None or camera.closed:
                     camera = self._reopen()
@@ -381,11 +424,13 @@ class Tracker:
                     if camera.closed:
                         continue  # stopped delivering: reopen with back-off
                     # A frame that cannot be decoded or has the wrong size: skip it.
+                    self.stats.read += 1
                     self.stats.corrupt += 1
-                    self.last_error = e
+                    self._record_fault(e)
                     _log_fault("frame %d skipped: %s", self.stats.corrupt, index, e)
                     index += 1
                     continue
+                self.stats.read += 1
                 self._put((index, time.time(), frame))
                 index += 1
         except BaseException as e:  # never die silently: the loop re-raises it
