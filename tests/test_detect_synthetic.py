@@ -9,7 +9,7 @@ import pytest
 import planarcal
 from planarcal import synth
 from planarcal.board import CircleGridBoard
-from planarcal.detect import _assemble_grid, _Blob, conic_centre_offset, detect_board
+from planarcal.detect import BoardTurnedError, conic_centre_offset, detect_board
 from planarcal.errors import BoardNotFoundError
 
 BOARD = synth.PAPER_BOARD
@@ -104,11 +104,20 @@ def test_a_mirrored_marker_board_is_refused() -> None:
         detect_board(scene.image[:, ::-1], board)
 
 
-def test_a_board_turned_a_quarter_is_read_the_right_way() -> None:
-    """A 14 x 10 board seen rotated by 90 degrees: found as 10 x 14 by OpenCV and re-indexed."""
+def test_a_board_turned_a_quarter_is_refused_unless_accepted() -> None:
+    """A 14 x 10 board without a marker seen turned by 90 degrees: the usual cause is --cols
+    and --rows swapped, so it is refused with the command line that reads it as given;
+    turned=True accepts it and reads it the board's way."""
     pose = synth.PlanePose(distance_mm=560, roll_deg=90, look_at_mm=(130, 90))
     scene = synth.render_scene(synth.CameraModel(), pose, board=BOARD, blur_sigma_px=0.8, seed=4)
-    det = detect_board(scene.image, BOARD)
+    with pytest.raises(BoardTurnedError, match="Did you mean --cols 10 --rows 14") as err:
+        detect_board(scene.image, BOARD)
+    assert isinstance(err.value, BoardNotFoundError) and isinstance(err.value, ValueError)
+    assert err.value.diagnostics is not None
+    swapped = detect_board(scene.image, CircleGridBoard(10, 14, 20.0, 10.0))
+    assert swapped.orientation == "ambiguous"
+    det = detect_board(scene.image, BOARD, turned=True)
+    assert any("turned" in w for w in det.warnings)
     assert _errors(det.image_points, scene.dot_centres_px).max() < 0.03
     grid = det.image_points.reshape(10, 14, 2)
     # Rows of 14 dots: along a row, neighbouring dots are one pitch apart in the world.
@@ -142,20 +151,3 @@ def test_a_board_partly_out_of_view_is_refused() -> None:
     assert scene.dots_in_view(margin_px=0).sum() < BOARD.n_points
     with pytest.raises(BoardNotFoundError, match="fewer dots than the board has"):
         detect_board(scene.image, BOARD)
-
-
-def test_blob_assembly_recovers_a_shuffled_distorted_grid() -> None:
-    """The last-resort finder: dots given in any order are put back on the grid."""
-    board = CircleGridBoard(7, 5, 20.0, 10.0)
-    h = np.array([[2.2, 0.4, 120.0], [-0.3, 2.0, 90.0], [6e-4, -4e-4, 1.0]])
-    pts = planarcal.transform_points(h, board.world_points())
-    pts += 0.02 * np.sin(np.arange(pts.size)).reshape(pts.shape)  # a little lens wobble
-    order = np.random.default_rng(0).permutation(len(pts))
-    blobs = [_Blob(float(x), float(y), 18.0) for x, y in pts[order]]
-    grid = _assemble_grid(blobs, board)
-    assert grid is not None and grid.shape == (5, 7, 2)
-    # The same grid up to a re-reading (which the canonical order then fixes).
-    target = pts.reshape(5, 7, 2)
-    readings = [target, target[::-1], target[:, ::-1], target[::-1, ::-1]]
-    assert min(np.abs(grid - r).max() for r in readings) < 1e-9
-    assert _assemble_grid(blobs[:-1], board) is None  # one dot missing: no grid

@@ -1,22 +1,32 @@
 """Finding the board in an image: every dot's centre, sub-pixel, in the board's order.
 
-The search tries OpenCV's symmetric circle-grid finder, then its clustering finder, each with
-a blob detector sized from the image (OpenCV's default caps dots at 5000 px^2), each with the
-grid read both ways; then, as a last resort, it assembles the grid itself from the blobs. Dark
-dots on light paper and light dots on a dark board are both tried unless one is asked for.
+The search (dark dots on light paper, then light dots on a dark board, unless one is asked
+for):
 
-Every result is then refined and checked before it is returned:
+1. Blobs: filled ellipses seen over several grey levels (planarcal.blobs), of any size from
+   about 4 px across to the largest a board in view can have; the board's nominal dot size
+   is not needed.
+2. Grids: lattices grown from the blobs and the board's dot pattern placed on them
+   (planarcal.grid_search), which is indifferent to dots of other sizes on the grid (an
+   origin marker as wide as the pitch, fiducials) and to marks off it (printed numbers,
+   arrows, the board's edge, texture). Where that finds nothing, OpenCV's findCirclesGrid
+   with its own defaults, then with its clustering flag, as long as the number of blobs in
+   view keeps them quick (they can run for minutes on thousands of blobs).
+3. Every candidate is refined and checked (planarcal.dot_centres): each centre from the dot's
+   grey levels over a plane fitted to the paper around it, then corrected for perspective
+   (the conic offset, with each dot's diameter measured in the image). A dot that cannot be
+   measured keeps its blob centre and is flagged (``refined``), instead of sinking the board.
+   A grid whose points stray from a homography by more than a third of the dot pitch, or
+   whose dots continue past an edge (a larger board), is not the board's and is refused.
 
-* Centres are refined to sub-pixel precision by the grey-level centroid of each dot over a
-  plane fitted to its local background (so uneven lighting does not pull them), which weighs
-  partly covered edge pixels by how much ink they see; no thresholding, no rounding.
-* The order is made canonical. The board's world frame (X along a row, Y down a column, as
-  printed and seen from the front) must map onto the image without a mirror; among the
-  orders that keep that handedness, point 0 is the origin marker when the board has one, and
-  otherwise the corner dot nearest the image's top-left corner (pixel (0, 0)). A board with a
-  marker that can only be read mirrored (seen from behind, or in a mirror) is refused.
-* A homography is fitted from the board to the found centres; a result whose points stray
-  from it by more than a third of the dot pitch is not the board's grid and is refused.
+The board's reading. The world frame (X along a row, Y down a column, as printed and seen
+from the front) maps onto the image without a mirror. An origin marker (the board's, or
+any corner dot clearly larger than its neighbours: recognised without being declared) is
+dot 0. Without one the orientation is ambiguous, and dot 0 is the corner nearest the image's
+top-left (pixel (0, 0)); the detection says so (``orientation``, ``orientation_rule``). A
+non-square board that can only be read turned by 90 degrees (its rows running down the
+image) is refused with the command line that reads it as given (``--cols`` and ``--rows``
+swapped), unless ``turned=True`` or a marker settles it.
 """
 
 from __future__ import annotations
@@ -28,18 +38,40 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal.blobs import Blobs, find_blobs
 from planarcal.board import CircleGridBoard
+from planarcal.dot_centres import refine_centres
 from planarcal.errors import BoardNotFoundError, DegenerateError
-from planarcal.homography import estimate_homography, reprojection_errors
+from planarcal.grid_search import (
+    board_pattern,
+    fill_holes,
+    grow_lattices,
+    lattice_extent,
+    lattice_to_world,
+    outer_ring,
+    place_board,
+)
+from planarcal.homography import estimate_homography, reprojection_errors, transform_points
 from planarcal.images import as_grey
 
 F64 = NDArray[np.float64]
 Polarity = Literal["auto", "dark", "light"]
+Orientation = Literal["marker", "ambiguous"]
 
 # A found grid whose points stray this far (in dot pitches) from a homography is not the board.
 MAX_GRID_RESIDUAL_PITCH = 1.0 / 3.0
-# The origin marker's area must exceed its neighbours' by this factor to count as found.
+# A dot whose ink area exceeds its neighbours' by this factor is enlarged (a marker, a fiducial).
 MARKER_AREA_RATIO = 1.35
+# Smallest dot looked for (px across).
+MIN_DOT_PX = 3.5
+# OpenCV's finders run only below this many blobs in view: beyond it they can take minutes.
+OPENCV_MAX_BLOBS = 600
+OPENCV_CLUSTERING_MAX_BLOBS = 250
+
+AMBIGUOUS_RULE = (
+    "no origin marker: dot 0 is the corner dot nearest the image's top-left corner, of the "
+    "readings that are not mirrored (the board turned by 180 degrees would look the same)"
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,13 +87,24 @@ class BoardDetection:
     image_size: tuple[int, int]
     """(width, height) of the image in pixels."""
     method: str
-    """Which finder succeeded: "symmetric", "clustering" or "blobs"."""
+    """Which finder succeeded: "lattice" (planarcal's own), "opencv" (findCirclesGrid's
+    defaults) or "opencv-clustering"."""
     polarity: Literal["dark", "light"]
     """Dark dots on a light board, or light dots on a dark one."""
     dot_diameters_px: F64
     """Each dot's equivalent diameter in pixels (from its ink area)."""
     residual_rms_px: float
     """RMS distance of the centres from the best homography through them (px)."""
+    refined: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
+    """Per dot: True where the centre was refined from the grey levels, False where the dot
+    could not be measured and keeps its blob's centre (coarser, about 0.1-0.5 px)."""
+    enlarged: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
+    """Per dot: True for dots clearly larger than their neighbours (a marker, fiducials)."""
+    orientation: Orientation = "ambiguous"
+    """"marker": dot 0 is the origin marker; "ambiguous": no marker, ``orientation_rule``
+    chose the reading."""
+    orientation_rule: str = AMBIGUOUS_RULE
+    warnings: tuple[str, ...] = ()
 
     def world_points(self) -> F64:
         """The dots' world positions in mm, matching image_points."""
@@ -70,35 +113,7 @@ class BoardDetection:
     @property
     def pitch_px(self) -> float:
         """Median distance between neighbouring dots in the image (px)."""
-        return _median_pitch(self.image_points.reshape(self.board.rows, self.board.cols, 2))
-
-
-def detect_board(
-    image: Any, board: CircleGridBoard, *, polarity: Polarity = "auto"
-) -> BoardDetection:
-    """Find `board` in `image` (an array, grey or BGR, any real dtype, or a path).
-
-    Returns the centre of every dot in the board's order; raises BoardNotFoundError, saying
-    what was seen and what to try, when the image does not show the whole board.
-    """
-    if polarity not in ("auto", "dark", "light"):
-        raise ValueError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
-    grey = as_grey(image)
-    polarities: tuple[Literal["dark", "light"], ...] = (
-        ("dark", "light") if polarity == "auto" else (polarity,)
-    )
-    refusals: list[str] = []
-    for pol in polarities:
-        ink_dark = grey if pol == "dark" else 255.0 - grey
-        u8 = np.clip(np.rint(ink_dark), 0, 255).astype(np.uint8)
-        detector = _blob_detector(u8.shape, board)
-        blobs = _blobs(u8, detector)
-        for method, grid in _grid_candidates(u8, detector, blobs, board):
-            try:
-                return _finish(ink_dark, grid, board, method, pol, blobs)
-            except _RefusedError as why:
-                refusals.append(f"{method} ({pol} dots): {why}")
-    raise BoardNotFoundError(_explain(grey, board, polarities, refusals))
+        return float(np.median(_nearest_distance(self.image_points)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,6 +123,8 @@ class SeenBlobs:
     polarity: Literal["dark", "light"]
     centres_px: F64
     diameters_px: F64
+    grid: tuple[int, int, int] | None = None
+    """The largest grid of these blobs: (dots across the image, dots down, dots in it)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,6 +149,55 @@ class DetectionDiagnostics:
     candidates: tuple[RefusedCandidate, ...]
 
 
+class BoardTurnedError(BoardNotFoundError):
+    """The grid found fits the board only turned by 90 degrees (``--cols``/``--rows``
+    swapped?), and no origin marker settles which way it lies."""
+
+
+def detect_board(
+    image: Any, board: CircleGridBoard, *, polarity: Polarity = "auto", turned: bool = False
+) -> BoardDetection:
+    """Find `board` in `image` (an array, grey or BGR, any real dtype, or a path).
+
+    Returns the centre of every dot in the board's order; raises BoardNotFoundError, saying
+    what was seen and what to try, when the image does not show the whole board (with
+    ``.diagnostics``: the blobs and the candidate grids refused). ``turned=True`` accepts a
+    non-square board without an origin marker that lies turned by 90 degrees in the image
+    (otherwise refused as BoardTurnedError: usually ``--cols`` and ``--rows`` swapped).
+    """
+    if polarity not in ("auto", "dark", "light"):
+        raise ValueError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
+    if not isinstance(board, CircleGridBoard):
+        raise ValueError(f"board must be a CircleGridBoard, got {type(board).__name__}")
+    grey = as_grey(image)
+    polarities: tuple[Literal["dark", "light"], ...] = (
+        ("dark", "light") if polarity == "auto" else (polarity,)
+    )
+    refused: list[RefusedCandidate] = []
+    seen: list[SeenBlobs] = []
+    turned_error: BoardTurnedError | None = None
+    for pol in polarities:
+        ink_dark = grey if pol == "dark" else 255.0 - grey
+        u8 = np.clip(np.rint(ink_dark), 0, 255).astype(np.uint8)
+        blobs = find_blobs(u8, MIN_DOT_PX, _largest_dot_px(u8.shape, board))
+        grids: list[tuple[int, int, int]] = []
+        for method, points, sizes, filled in _candidates(u8, blobs, board, pol, refused, grids):
+            try:
+                return _finish(ink_dark, points, sizes, filled, board, method, pol, blobs, turned)
+            except BoardTurnedError as e:
+                turned_error = turned_error or e
+                refused.append(RefusedCandidate(method, pol, points, str(e)))
+            except _RefusedError as why:
+                refused.append(RefusedCandidate(method, pol, points, str(why)))
+        largest = max(grids, key=lambda g: g[2], default=None)
+        seen.append(SeenBlobs(pol, blobs.centres, blobs.diameters, largest))
+    h, w = grey.shape
+    diagnostics = DetectionDiagnostics(board, (w, h), tuple(seen), tuple(refused))
+    if turned_error is not None:
+        raise BoardTurnedError(str(turned_error), diagnostics)
+    raise BoardNotFoundError(_explain(grey, board, seen, polarities, refused), diagnostics)
+
+
 class _RefusedError(Exception):
     """A candidate grid that failed a check (the reason is the message)."""
 
@@ -140,195 +206,139 @@ class _RefusedError(Exception):
 # Candidate grids
 
 
-def _grid_candidates(
-    u8: NDArray[np.uint8], detector: Any, blobs: list[_Blob], board: CircleGridBoard
-) -> Iterator[tuple[str, F64]]:
-    """(method, grid of shape (rows, cols, 2)) for each way of finding the dots, in order."""
-    import cv2
-
-    patterns = [(board.cols, board.rows)]
-    if board.rows != board.cols:
-        patterns.append((board.rows, board.cols))
-    for method, flags in (
-        ("symmetric", cv2.CALIB_CB_SYMMETRIC_GRID),
-        ("clustering", cv2.CALIB_CB_SYMMETRIC_GRID | cv2.CALIB_CB_CLUSTERING),
-    ):
-        for pattern in patterns:
-            try:
-                found, centres = cv2.findCirclesGrid(
-                    u8, pattern, flags=flags, blobDetector=detector
-                )
-            except cv2.error:
-                continue
-            if found and centres is not None and len(centres) == board.n_points:
-                yield (
-                    method,
-                    _pattern_to_grid(
-                        np.asarray(centres, dtype=np.float64).reshape(-1, 2), pattern, board
-                    ),
-                )
-    grid = _assemble_grid(blobs, board)
-    if grid is not None:
-        yield "blobs", grid
-
-
-def _pattern_to_grid(points: F64, pattern: tuple[int, int], board: CircleGridBoard) -> F64:
-    """OpenCV's row-major list for pattern (w, h) as a (rows, cols, 2) grid of the board's
-    shape (transposed when the board was read the other way round)."""
-    w, h = pattern
-    grid = points.astype(np.float64).reshape(h, w, 2)
-    if (h, w) != (board.rows, board.cols):
-        grid = grid.transpose(1, 0, 2)
-    return np.ascontiguousarray(grid)
-
-
-def _expected_dot_diameter_range(
-    shape: tuple[int, ...], board: CircleGridBoard
-) -> tuple[float, float]:
-    """Smallest and largest plausible dot diameter in pixels for a board fully in view."""
+def _largest_dot_px(shape: tuple[int, ...], board: CircleGridBoard) -> float:
+    """The largest dot (an origin marker as wide as the neighbour distance) that a board
+    wholly in view can show, px, with slack for perspective (near dots look larger)."""
     h, w = shape[:2]
-    longest = max(board.cols, board.rows) - 1
-    shortest = min(board.cols, board.rows) - 1
-    # The whole grid is in view: its pitch is at most what fits along the image, with slack
-    # for perspective (the near side of a tilted board looks larger).
-    pitch_max = 2.0 * min(max(w, h) / max(longest, 1), min(w, h) / max(shortest, 1))
-    ratio = board.origin_marker_diameter / board.pitch
-    return 3.0, max(6.0, pitch_max * ratio)
+    span = board.world_points().max(axis=0) / board.neighbour_distance
+    longest, shortest = max(float(max(span)), 1.0), max(float(min(span)), 1.0)
+    step_max = min(max(w, h) / longest, min(w, h) / shortest)
+    return float(max(8.0, 2.0 * step_max))
 
 
-def _blob_detector(shape: tuple[int, ...], board: CircleGridBoard) -> Any:
+def _candidates(
+    u8: NDArray[np.uint8],
+    blobs: Blobs,
+    board: CircleGridBoard,
+    polarity: Literal["dark", "light"],
+    refused: list[RefusedCandidate],
+    grids: list[tuple[int, int, int]],
+) -> Iterator[tuple[str, F64, F64, NDArray[np.bool_]]]:
+    """(method, points (n, 2) in a reading of the board's order, blob diameters (n,) px,
+    which dots are filled in where no blob was)."""
+    n = board.n_points
+    for lattice in grow_lattices(blobs, min_nodes=min(n, 4)):
+        placements = place_board(lattice, board)
+        pts = blobs.centres[lattice.blob]
+        cols, rows = lattice_extent(lattice, blobs.centres)
+        grids.append((cols, rows, len(lattice.blob)))
+        if len(placements) == 1:
+            p = placements[0]
+            points = fill_holes(p, blobs.centres)
+            sizes = np.where(p.blob >= 0, blobs.diameters[p.blob], np.nan)
+            sizes[p.blob < 0] = float(np.nanmedian(sizes))
+            if np.isfinite(points).all():
+                yield "lattice", points, sizes, p.blob < 0
+        elif len(placements) > 1:
+            refused.append(
+                RefusedCandidate(
+                    "lattice",
+                    polarity,
+                    pts,
+                    f"a grid of about {cols} x {rows} dots, larger than the board's "
+                    f"{board.cols} x {board.rows}: the board fits in it {len(placements)} ways",
+                )
+            )
+        elif len(lattice.blob) >= max(4, n // 2):
+            refused.append(
+                RefusedCandidate(
+                    "lattice",
+                    polarity,
+                    pts,
+                    f"a grid of about {cols} x {rows} dots ({len(lattice.blob)} dots), which "
+                    f"the board's {board.cols} x {board.rows} does not fill",
+                )
+            )
+    for clustering, limit in ((False, OPENCV_MAX_BLOBS), (True, OPENCV_CLUSTERING_MAX_BLOBS)):
+        if polarity == "dark" and len(blobs) <= limit:
+            for method, points in _opencv_candidates(u8, board, clustering=clustering):
+                yield method, points, _sizes_at(points, blobs), np.zeros(len(points), bool)
+
+
+def _opencv_candidates(
+    u8: NDArray[np.uint8], board: CircleGridBoard, *, clustering: bool
+) -> Iterator[tuple[str, F64]]:
+    """OpenCV's findCirclesGrid with its default blob detector, as a user would call it:
+    the floor planarcal never falls below."""
     import cv2
 
-    d_min, d_max = _expected_dot_diameter_range(shape, board)
-    p = cv2.SimpleBlobDetector.Params()
-    p.filterByColor = True
-    p.blobColor = 0
-    p.filterByArea = True
-    p.minArea = float(np.pi / 4 * d_min**2)
-    p.maxArea = float(np.pi / 4 * d_max**2)
-    # Tilted dots are ellipses: keep circularity and inertia loose.
-    p.filterByCircularity = True
-    p.minCircularity = 0.5
-    p.filterByInertia = True
-    p.minInertiaRatio = 0.2
-    p.filterByConvexity = True
-    p.minConvexity = 0.8
-    p.minThreshold = 10
-    p.maxThreshold = 240
-    p.thresholdStep = 10
-    p.minDistBetweenBlobs = max(2.0, 0.5 * d_min)
-    return cv2.SimpleBlobDetector.create(p)
+    flags = cv2.CALIB_CB_ASYMMETRIC_GRID if board.layout == "asymmetric" else 0
+    flags |= cv2.CALIB_CB_SYMMETRIC_GRID if board.layout == "symmetric" else 0
+    if clustering:
+        flags |= cv2.CALIB_CB_CLUSTERING
+    try:
+        found, centres = cv2.findCirclesGrid(u8, (board.cols, board.rows), flags=flags)
+    except cv2.error:
+        return
+    if not found or centres is None or len(centres) != board.n_points:
+        return
+    points = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
+    yield ("opencv-clustering" if clustering else "opencv"), points
 
 
-@dataclasses.dataclass(frozen=True)
-class _Blob:
-    x: float
-    y: float
-    size: float
-
-
-def _blobs(u8: NDArray[np.uint8], detector: Any) -> list[_Blob]:
-    return [_Blob(k.pt[0], k.pt[1], k.size) for k in detector.detect(u8)]
-
-
-def _dominant_size_group(blobs: list[_Blob]) -> list[_Blob]:
-    """The blobs whose size is within a factor of 2 of the most common size."""
-    if not blobs:
-        return []
-    sizes = np.log(np.array([b.size for b in blobs]))
-    # The size with the most blobs within a factor of sqrt(2) around it.
-    counts = [(np.abs(sizes - s) <= 0.35).sum() for s in sizes]
-    mode = sizes[int(np.argmax(counts))]
-    return [b for b, s in zip(blobs, sizes, strict=True) if abs(s - mode) <= np.log(2.0)]
-
-
-def _assemble_grid(blobs: list[_Blob], board: CircleGridBoard) -> F64 | None:
-    """The grid put together from blob centres alone: the hull's four corners give a first
-    homography from grid indices to pixels, every blob is assigned to its nearest grid
-    position, and the homography is refitted from all of them until the assignment settles."""
-    import cv2
-
-    group = _dominant_size_group(blobs)
-    if len(group) != board.n_points:
-        return None
-    pts = np.array([[b.x, b.y] for b in group], dtype=np.float64)
-    hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2)
-    perimeter = cv2.arcLength(hull, True)
-    corners = None
-    for eps in perimeter * np.geomspace(0.005, 0.2, 24):
-        approx = cv2.approxPolyDP(hull, float(eps), True).reshape(-1, 2)
-        if len(approx) == 4:
-            corners = approx.astype(np.float64)
-            break
-        if len(approx) < 4:
-            break
-    if corners is None:
-        return None
-    for cols, rows in {(board.cols, board.rows), (board.rows, board.cols)}:
-        unit = np.array([[0, 0], [cols - 1, 0], [cols - 1, rows - 1], [0, rows - 1]], float)
-        for shift in range(4):
-            quad = np.roll(corners, shift, axis=0)
-            grid = _assign(pts, unit, quad, cols, rows)
-            if grid is not None:
-                if (rows, cols) != (board.rows, board.cols):
-                    grid = grid.transpose(1, 0, 2)
-                return np.ascontiguousarray(grid)
-    return None
-
-
-def _assign(pts: F64, unit: F64, quad: F64, cols: int, rows: int) -> F64 | None:
-    import cv2
-
-    h = cv2.getPerspectiveTransform(unit.astype(np.float32), quad.astype(np.float32))
-    for _ in range(4):
-        try:
-            inv = np.linalg.inv(h)
-        except np.linalg.LinAlgError:
-            return None
-        g = cv2.perspectiveTransform(pts.reshape(-1, 1, 2), inv).reshape(-1, 2)
-        idx = np.rint(g).astype(int)
-        if (np.abs(g - idx) > 0.35).any():
-            return None
-        if (idx[:, 0] < 0).any() or (idx[:, 0] >= cols).any():
-            return None
-        if (idx[:, 1] < 0).any() or (idx[:, 1] >= rows).any():
-            return None
-        flat = idx[:, 1] * cols + idx[:, 0]
-        if len(np.unique(flat)) != len(flat):
-            return None
-        grid = np.empty((rows, cols, 2))
-        grid[idx[:, 1], idx[:, 0]] = pts
-        h, _ = cv2.findHomography(idx.astype(np.float64), pts, 0)
-        if h is None:
-            return None
-    return grid
+def _sizes_at(points: F64, blobs: Blobs) -> F64:
+    """The diameter of the blob at each point (half the spacing where no blob is)."""
+    spacing = _nearest_distance(points)
+    sizes = 0.5 * spacing
+    if len(blobs):
+        d = np.hypot(*(points[:, None, :] - blobs.centres[None, :, :]).transpose(2, 0, 1))
+        nearest = d.argmin(axis=1)
+        close = d[np.arange(len(points)), nearest] < 0.3 * spacing
+        sizes[close] = blobs.diameters[nearest[close]]
+    return sizes
 
 
 # ------------------------------------------------------------------------------------------
-# Refinement, ordering, checks
+# Refinement, reading, checks
 
 
 def _finish(
     ink_dark: NDArray[np.float32],
-    grid: F64,
+    points: F64,
+    sizes: F64,
+    filled: NDArray[np.bool_],
     board: CircleGridBoard,
     method: str,
     polarity: Literal["dark", "light"],
-    blobs: list[_Blob],
+    blobs: Blobs,
+    turned: bool,
 ) -> BoardDetection:
-    rows, cols = board.rows, board.cols
-    pitch = _median_pitch(grid)
+    spacing = _nearest_distance(points)
+    pitch = float(np.median(spacing))
     if not np.isfinite(pitch) or pitch < 4.0:
         raise _RefusedError(f"dots too close together ({pitch:.1f} px apart)")
-    centres, areas = refine_centres(ink_dark, grid.reshape(-1, 2), _local_pitch(grid).ravel())
-    grid = centres.reshape(rows, cols, 2)
-    area_grid = areas.reshape(rows, cols)
-    grid, area_grid = _canonical_order(grid, area_grid, board)
-    points = grid.reshape(-1, 2)
+    # A blob is never larger than its spacing: a clipped size keeps the windows sane.
+    sizes = np.minimum(sizes, spacing)
+    measured = refine_centres(ink_dark, points, sizes)
+    unseen = np.flatnonzero(filled & ~measured.refined)
+    if unseen.size:
+        raise _RefusedError(
+            f"no dot where the grid has one (near pixel {points[unseen[0]].round(1).tolist()})"
+        )
+    enlarged = _enlarged(points, measured.areas, pitch)
+    centres, refined, doubts = _checked_by_neighbours(
+        measured.centres, measured.areas, measured.refined, enlarged, board, pitch
+    )
+    reading, orientation, rule, warnings = _reading(centres, enlarged, board, turned, pitch)
+    centres = centres[reading]
+    areas = measured.areas[reading]
+    refined = refined[reading]
+    enlarged = enlarged[reading]
+    warnings = (*warnings, *doubts)
     world = board.world_points()
     try:
-        points, h = _unbias(points, world, board.dot_diameters())
-        residuals = reprojection_errors(h, world, points)
+        corrected, h = _unbias(centres, world, areas, enlarged)
+        residuals = reprojection_errors(h, world, corrected)
     except (DegenerateError, ValueError) as e:
         raise _RefusedError(f"the points do not form a grid: {e}") from None
     worst = float(residuals.max())
@@ -338,23 +348,209 @@ def _finish(
             f"not the board's grid: dot {k} is {worst:.1f} px from where a homography puts "
             f"it (pitch {pitch:.1f} px)"
         )
-    diameters = 2.0 * np.sqrt(area_grid.reshape(-1) / np.pi)
+    diameters = 2.0 * np.sqrt(areas / np.pi)
     beyond = _continues_beyond(h, board, blobs, float(np.median(diameters)), pitch)
     if beyond is not None:
         raise _RefusedError(
             f"the dots continue past the grid's {beyond} edge: the board in view is larger than "
-            f"{cols} x {rows} (check --cols and --rows)"
+            f"{board.cols} x {board.rows} (check --cols and --rows)"
+        )
+    if measured.why_not:
+        warnings = (
+            *warnings,
+            f"{len(measured.why_not)} of {len(refined)} dots could not be measured and keep "
+            f"a coarser centre ({'; '.join(measured.why_not[:3])})",
         )
     height, width = ink_dark.shape[:2]
     return BoardDetection(
         board=board,
-        image_points=np.ascontiguousarray(points),
+        image_points=np.ascontiguousarray(corrected),
         image_size=(width, height),
         method=method,
         polarity=polarity,
         dot_diameters_px=diameters,
         residual_rms_px=float(np.sqrt(np.mean(residuals**2))),
+        refined=refined,
+        enlarged=enlarged,
+        orientation=orientation,
+        orientation_rule=rule,
+        warnings=warnings,
     )
+
+
+# A dot this far from where its neighbours put it (in pitches; at least 1 px; real photographs
+# stay under 0.1 at the board's edges, where the prediction extrapolates) is not measured
+# right (a mark or glare over it, a dot split in two) and takes their prediction instead.
+NEIGHBOUR_DISAGREEMENT_PITCH = 0.15
+# A dot with less ink than this fraction of its neighbours' is partly hidden.
+MIN_AREA_OF_NEIGHBOURS = 0.5
+
+
+def _checked_by_neighbours(
+    centres: F64,
+    areas: F64,
+    refined: NDArray[np.bool_],
+    enlarged: NDArray[np.bool_],
+    board: CircleGridBoard,
+    pitch: float,
+) -> tuple[F64, NDArray[np.bool_], tuple[str, ...]]:
+    """Each centre against the homography through the dots around it (two steps on the
+    board; the board's bend by the lens is smooth over that): a dot that strays from it, or
+    that shows much less ink than its neighbours, keeps their prediction instead, flagged
+    as not refined."""
+    world = board.world_points()
+    reach = 2.01 * board.neighbour_distance
+    d_world = np.hypot(*(world[:, None, :] - world[None, :, :]).transpose(2, 0, 1))
+    out = centres.copy()
+    ok = refined.copy()
+    doubts = []
+    limit = max(1.0, NEIGHBOUR_DISAGREEMENT_PITCH * pitch)
+    for k in range(len(world)):
+        around = (d_world[k] > 0) & (d_world[k] <= reach)
+        if around.sum() < 5:
+            continue
+        try:
+            h = estimate_homography(world[around], centres[around])
+            predicted = transform_points(h, world[[k]])[0]
+        except ValueError:
+            continue
+        gap = float(np.hypot(*(centres[k] - predicted)))
+        regular = around & ~enlarged
+        shrunk = (
+            not enlarged[k]
+            and regular.sum() >= 3
+            and areas[k] < MIN_AREA_OF_NEIGHBOURS * float(np.median(areas[regular]))
+        )
+        if gap > limit or shrunk:
+            why = (
+                f"{gap:.1f} px from where its neighbours put it"
+                if gap > limit
+                else ("much less ink than its neighbours")
+            )
+            doubts.append(f"dot at pixel {centres[k].round(1).tolist()}: {why} (partly hidden?)")
+            out[k] = predicted
+            ok[k] = False
+    if doubts:
+        doubts = [
+            f"{len(doubts)} dot(s) replaced by where their neighbours put them, flagged as not "
+            f"refined: {'; '.join(doubts[:3])}"
+        ]
+    return out, ok, tuple(doubts)
+
+
+def _nearest_distance(points: F64) -> F64:
+    """Each point's distance to its nearest other point."""
+    d = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
+    np.fill_diagonal(d, np.inf)
+    nearest: F64 = d.min(axis=1)
+    return nearest
+
+
+def _enlarged(points: F64, areas: F64, pitch: float) -> NDArray[np.bool_]:
+    """Dots whose ink area exceeds the median of the dots around them (within two pitches)
+    by MARKER_AREA_RATIO."""
+    d = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
+    out = np.zeros(len(points), dtype=bool)
+    for k in range(len(points)):
+        around = (d[k] > 0) & (d[k] < 2.2 * pitch)
+        if around.sum() >= 2:
+            out[k] = areas[k] > MARKER_AREA_RATIO * float(np.median(areas[around]))
+    return out
+
+
+def _readings(board: CircleGridBoard) -> list[NDArray[np.intp]]:
+    """The re-indexings of the board's dots that map its pattern onto itself (its
+    symmetries: the identity, a turn by 180 degrees, and the turns and mirrors a square grid
+    adds), as permutations: reading[k] is the found dot that is dot k."""
+    pattern = board_pattern(board)
+    index = {tuple(p): k for k, p in enumerate(pattern.tolist())}
+    out = []
+    for a, b, c, d in (
+        (1, 0, 0, 1),
+        (-1, 0, 0, -1),
+        (-1, 0, 0, 1),
+        (1, 0, 0, -1),
+        (0, 1, 1, 0),
+        (0, -1, 1, 0),
+        (0, 1, -1, 0),
+        (0, -1, -1, 0),
+    ):
+        turned = pattern @ np.array([[a, b], [c, d]]).T
+        turned -= turned.min(axis=0)
+        perm = [index.get(tuple(p)) for p in turned.tolist()]
+        if None not in perm:
+            out.append(np.array(perm, dtype=np.intp))
+    return out
+
+
+def _unmirrored(points: F64, world: F64) -> bool:
+    """Whether the world frame maps onto these image points without a mirror: the affine
+    fit's determinant is positive (image y runs down, like the board's Y)."""
+    design = np.column_stack([world, np.ones(len(world))])
+    coef = np.linalg.lstsq(design, points, rcond=None)[0]
+    return bool(np.linalg.det(coef[:2, :2].T) > 0)
+
+
+def _reading(
+    centres: F64, enlarged: NDArray[np.bool_], board: CircleGridBoard, turned: bool, pitch: float
+) -> tuple[NDArray[np.intp], Orientation, str, tuple[str, ...]]:
+    """The one re-indexing of the found dots that is the board's, how it was chosen, and
+    warnings."""
+    world = board.world_points()
+    readings = [r for r in _readings(board) if _unmirrored(centres[r], world)]
+    swap = _swap_hint(board)
+    if not readings:
+        raise _RefusedError(
+            "the grid has no unmirrored reading: is the board seen from behind, or in a "
+            f"mirror?{swap}"
+        )
+    corners = _corner_dots(board)
+    marker_at = [k for k in corners if enlarged[k]] if len(corners) else []
+    if len(marker_at) == 1:
+        marker = marker_at[0]
+        for r in readings:
+            if r[0] == marker:
+                return r, "marker", "dot 0 is the origin marker (the enlarged corner dot)", ()
+        raise _RefusedError(
+            "the board appears mirrored (its origin marker can only be read with X and Y "
+            f"swapped): is it seen from behind, or in a mirror?{swap}"
+        )
+    if board.origin_marker:
+        found = "several enlarged corner dots" if marker_at else "no enlarged corner dot"
+        raise _RefusedError(
+            f"no origin marker: the board has one, but {found} was seen (is the board's "
+            "marker setting right?)"
+        )
+    best = min(readings, key=lambda r: float(np.hypot(*centres[r[0]])))
+    warnings: tuple[str, ...] = ()
+    if board.cols != board.rows and board.layout == "symmetric":
+        x_axis = centres[best[1]] - centres[best[0]]
+        if abs(x_axis[1]) > abs(x_axis[0]):
+            message = (
+                f"the {board.cols} x {board.rows} grid lies turned by 90 degrees in the image "
+                f"(its rows run down the image).{swap} If the board really lies turned, accept "
+                "its frame as it is with --turned (turned=True)."
+            )
+            if not turned:
+                raise BoardTurnedError(message)
+            warnings = ("the board lies turned by 90 degrees in the image (accepted: turned)",)
+    return best, "ambiguous", AMBIGUOUS_RULE, warnings
+
+
+def _swap_hint(board: CircleGridBoard) -> str:
+    if board.cols == board.rows or board.layout != "symmetric":
+        return ""
+    return f" Did you mean --cols {board.rows} --rows {board.cols}?"
+
+
+def _corner_dots(board: CircleGridBoard) -> list[int]:
+    """The indices of the board's corner dots (where an origin marker can be)."""
+    world = board.world_points()
+    out = {
+        int(np.argmin(sx * world[:, 0] + sy * world[:, 1]))
+        for sx, sy in ((1, 1), (-1, 1), (1, -1), (-1, -1))
+    }
+    return sorted(out)
 
 
 def conic_centre_offset(h: F64, centres_mm: F64, diameters_mm: F64) -> F64:
@@ -374,11 +570,34 @@ def conic_centre_offset(h: F64, centres_mm: F64, diameters_mm: F64) -> F64:
     return out
 
 
-def _unbias(points: F64, world: F64, diameters: F64) -> tuple[F64, F64]:
+def _diameters_mm(h: F64, world: F64, areas_px: F64, enlarged: NDArray[np.bool_]) -> F64:
+    """Each dot's diameter on the board, mm, from its ink area in the image through the
+    homography's local scale: the regular dots share their median (less noisy than each
+    one's), enlarged dots keep their own."""
+    hinv = np.linalg.inv(h)
+    eps = 1e-3
+    p = transform_points(h, world)
+    px = transform_points(hinv, p + np.array([eps, 0.0]))
+    py = transform_points(hinv, p + np.array([0.0, eps]))
+    # mm^2 per px^2 at each dot: the Jacobian of the image-to-board map.
+    jx, jy = (px - world) / eps, (py - world) / eps
+    scale = np.abs(jx[:, 0] * jy[:, 1] - jx[:, 1] * jy[:, 0])
+    d = 2.0 * np.sqrt(areas_px * scale / np.pi)
+    regular = ~enlarged
+    if regular.any():
+        d = np.where(regular, float(np.median(d[regular])), d)
+    out: F64 = d
+    return out
+
+
+def _unbias(points: F64, world: F64, areas_px: F64, enlarged: NDArray[np.bool_]) -> tuple[F64, F64]:
     """The measured centres (centroids of the dots' images) moved to the images of the dots'
-    centres, by the conic offset under the homography they imply; the offset is recomputed
-    once from the corrected points' homography (it changes by well under 1e-4 px after)."""
+    centres, by the conic offset under the homography they imply, with the dots' diameters
+    measured from the image; recomputed once from the corrected points' homography (it
+    changes by well under 1e-4 px after)."""
     h = estimate_homography(world, points, refine=True)
+    diameters = _diameters_mm(h, world, areas_px, enlarged)
+    corrected = points
     for _ in range(2):
         corrected = points - conic_centre_offset(h, world, diameters)
         h = estimate_homography(world, corrected, refine=True)
@@ -386,216 +605,35 @@ def _unbias(points: F64, world: F64, diameters: F64) -> tuple[F64, F64]:
 
 
 def _continues_beyond(
-    h: F64, board: CircleGridBoard, blobs: list[_Blob], dot_px: float, pitch_px: float
+    h: F64, board: CircleGridBoard, blobs: Blobs, dot_px: float, pitch_px: float
 ) -> str | None:
     """The edge past which the grid visibly goes on (dots of the same size where one more row
     or column would be), or None. A grid found inside a larger board is not that board: its
     origin would be the wrong dot."""
-    if not blobs:
+    if not len(blobs):
         return None
-    from planarcal.homography import transform_points
-
-    p = board.pitch
-    cols, rows = board.cols, board.rows
+    ring = lattice_to_world(board, outer_ring(board))
+    span = board.world_points().max(axis=0)
+    tol = 1e-6 * float(board.pitch)
+    x, y = ring[:, 0], ring[:, 1]
     edges = {
-        "top": [(c * p, -p) for c in range(cols)],
-        "bottom": [(c * p, rows * p) for c in range(cols)],
-        "left": [(-p, r * p) for r in range(rows)],
-        "right": [(cols * p, r * p) for r in range(rows)],
+        "top": y < -tol,
+        "bottom": y > span[1] + tol,
+        "left": x < -tol,
+        "right": x > span[0] + tol,
     }
-    xy = np.array([[b.x, b.y] for b in blobs])
-    size = np.array([b.size for b in blobs])
-    similar = (size > 0.5 * dot_px) & (size < 2.0 * dot_px)
-    for name, positions in edges.items():
-        predicted = transform_points(h, np.array(positions), invalid="nan")
-        seen = 0
-        for q in predicted:
-            if not np.isfinite(q).all():
-                continue
+    xy = blobs.centres
+    similar = (blobs.diameters > 0.5 * dot_px) & (blobs.diameters < 2.0 * dot_px)
+    predicted = transform_points(h, ring, invalid="nan")
+    near = np.zeros(len(ring), dtype=bool)
+    for k, q in enumerate(predicted):
+        if np.isfinite(q).all():
             d = np.hypot(xy[:, 0] - q[0], xy[:, 1] - q[1])
-            if (similar & (d < 0.25 * pitch_px)).any():
-                seen += 1
-        if seen >= max(2, len(positions) // 2):
+            near[k] = bool((similar & (d < 0.25 * pitch_px)).any())
+    for name, on_edge in edges.items():
+        if near[on_edge].sum() >= max(2, int(on_edge.sum()) // 2):
             return name
     return None
-
-
-def _local_pitch(grid: F64) -> F64:
-    """Each dot's distance to its nearest grid neighbour (perspective makes near dots
-    larger and further apart than far ones), shape (rows, cols)."""
-    along = np.linalg.norm(np.diff(grid, axis=1), axis=2)
-    down = np.linalg.norm(np.diff(grid, axis=0), axis=2)
-    near = np.full(grid.shape[:2], np.inf)
-    near[:, :-1] = np.minimum(near[:, :-1], along)
-    near[:, 1:] = np.minimum(near[:, 1:], along)
-    near[:-1, :] = np.minimum(near[:-1, :], down)
-    near[1:, :] = np.minimum(near[1:, :], down)
-    return near
-
-
-def _median_pitch(grid: F64) -> float:
-    along = np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel()
-    down = np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel()
-    return float(np.median(np.concatenate([along, down])))
-
-
-def _symmetries(rows: int, cols: int) -> Iterator[tuple[str, Any]]:
-    """The re-indexings of a rows x cols grid onto itself (as functions on (r, c, ...) arrays)."""
-    yield "identity", lambda a: a
-    yield "flip rows", lambda a: a[::-1]
-    yield "flip columns", lambda a: a[:, ::-1]
-    yield "rotate 180", lambda a: a[::-1, ::-1]
-    if rows == cols:
-        yield "transpose", lambda a: a.transpose(1, 0, *range(2, a.ndim))
-        yield "rotate 90", lambda a: a.transpose(1, 0, *range(2, a.ndim))[::-1]
-        yield "rotate 270", lambda a: a.transpose(1, 0, *range(2, a.ndim))[:, ::-1]
-        yield "anti-transpose", lambda a: a.transpose(1, 0, *range(2, a.ndim))[::-1, ::-1]
-
-
-def _handedness(grid: F64) -> float:
-    """Twice the signed area of the grid's corner quadrilateral, in image coordinates (y down):
-    positive when the board's X and Y axes appear as printed, negative when mirrored."""
-    q = np.array([grid[0, 0], grid[0, -1], grid[-1, -1], grid[-1, 0]])
-    x, y = q[:, 0], q[:, 1]
-    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
-def _canonical_order(grid: F64, areas: F64, board: CircleGridBoard) -> tuple[F64, F64]:
-    """The one re-indexing of the found grid that is the board's: unmirrored, with point 0 at
-    the origin marker (if any) or at the corner nearest the image's top-left."""
-    rows, cols = board.rows, board.cols
-    candidates = []
-    for _name, f in _symmetries(rows, cols):
-        g, a = f(grid), f(areas)
-        if g.shape[:2] == (rows, cols) and _handedness(g) > 0:
-            candidates.append((np.ascontiguousarray(g), np.ascontiguousarray(a)))
-    if not candidates:
-        raise _RefusedError("the grid has no unmirrored reading")
-    if not board.origin_marker:
-        return min(candidates, key=lambda ga: float(np.hypot(*ga[0][0, 0])))
-    # The marker: the corner dot whose ink area most exceeds its neighbours'.
-    corner_ratio = {}
-    for r, c in ((0, 0), (0, cols - 1), (rows - 1, 0), (rows - 1, cols - 1)):
-        nr, nc = (1 if r == 0 else rows - 2), (1 if c == 0 else cols - 2)
-        neighbours = [areas[r, nc], areas[nr, c], areas[nr, nc]]
-        corner_ratio[(r, c)] = areas[r, c] / float(np.median(neighbours))
-    ranked = sorted(corner_ratio.items(), key=lambda kv: -kv[1])
-    (best, ratio), (_, second) = ranked[0], ranked[1]
-    if ratio < MARKER_AREA_RATIO or ratio < 1.15 * second:
-        raise _RefusedError(
-            f"no origin marker: no corner dot is clearly larger than its neighbours "
-            f"(largest ratio {ratio:.2f})"
-        )
-    marker_xy = grid[best]
-    for g, a in candidates:
-        if np.allclose(g[0, 0], marker_xy):
-            return g, a
-    raise _RefusedError(
-        "the board appears mirrored (its origin marker can only be read with X and Y "
-        "swapped): is it seen from behind, or in a mirror?"
-    )
-
-
-def refine_centres(ink_dark: NDArray[np.float32], points: F64, pitches: F64) -> tuple[F64, F64]:
-    """Sub-pixel centres and ink areas (px^2) of the dark dots near `points`, each of which is
-    `pitches[k]` pixels from its nearest neighbour.
-
-    Each dot's centre is the centroid of its darkness: (background - pixel) / (background -
-    ink), clipped to [0, 1], over a disc around the dot, where the background is a plane
-    fitted (robustly) to a ring of paper around it and the ink level is the dot's darkest
-    decile. Edge pixels count by how much ink they see, so the estimate is sub-pixel without
-    thresholds. Three passes: each sizes the dot and re-centres the disc on it.
-    """
-    h, w = ink_dark.shape[:2]
-    out = np.array(points, dtype=np.float64, copy=True)
-    areas = np.zeros(len(out))
-    for k in range(len(out)):
-        cx, cy = out[k]
-        half = 0.5 * float(pitches[k])
-        radius = 0.45 * half  # a first guess; replaced by the measured size
-        for _ in range(3):
-            ring_in = min(radius + max(2.0, 0.3 * radius), 0.95 * half)
-            ring_out = min(ring_in + max(2.0, 0.25 * radius), half)
-            # The disc must be in the image; the ring may be cut by the border.
-            if cx - ring_in < 0 or cy - ring_in < 0 or cx + ring_in > w - 1 or cy + ring_in > h - 1:
-                raise _RefusedError(f"dot {k} is cut by the image border")
-            x0, x1 = max(0, int(np.floor(cx - ring_out))), min(w, int(np.ceil(cx + ring_out)) + 1)
-            y0, y1 = max(0, int(np.floor(cy - ring_out))), min(h, int(np.ceil(cy + ring_out)) + 1)
-            patch = ink_dark[y0:y1, x0:x1].astype(np.float64)
-            yy, xx = np.mgrid[y0:y1, x0:x1].astype(np.float64)
-            r = np.hypot(xx - cx, yy - cy)
-            ring = (r >= ring_in) & (r <= ring_out)
-            inside = r < ring_in
-            if ring.sum() < 6 or inside.sum() < 4:
-                raise _RefusedError(f"dot {k} is too small to measure")
-            background = _ring_plane(patch, xx - cx, yy - cy, ring)
-            weight = _ink_weights(patch, background, inside)
-            if weight is None:
-                raise _RefusedError(f"dot {k} has no contrast with its background")
-            total = float(weight.sum())
-            if total <= 0:
-                raise _RefusedError(f"dot {k} has no ink")
-            cx = float((weight * xx).sum() / total)
-            cy = float((weight * yy).sum() / total)
-            radius = float(np.sqrt(total / np.pi))
-        out[k] = (cx, cy)
-        areas[k] = total
-    return out, areas
-
-
-def _ink_weights(patch: F64, background: F64, inside: NDArray[np.bool_]) -> F64 | None:
-    """How much of each pixel the dot's ink covers, in [0, 1]; None without contrast.
-
-    Light is multiplicative, so coverage is read from the ratio of a pixel to the local
-    background, which uneven lighting does not change. Only the edge band carries sub-pixel
-    information; the interior counts as exactly 1 and the outside as exactly 0, so sensor noise
-    there adds nothing. The three regions are told apart on a smoothed copy of the coverage,
-    where noise cannot flip them; the band (smoothed coverage 0.2 to 0.8, widened by a pixel)
-    keeps each pixel's measured, linear coverage, which is what makes a sampled centroid exact
-    (a steeper transform of it was measured to quantise). The thresholds balance noise against
-    bias: on rendered dots they beat findCirclesGrid's centres under every combination of
-    blur (0.7, 1.5 px), noise (0, 3 grey levels) and lighting gradient tried.
-    """
-    import cv2
-
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(background > 0, patch / background, 1.0)
-    darkness = 1.0 - ratio
-    core = float(
-        np.median(darkness[inside][darkness[inside] >= np.percentile(darkness[inside], 75)])
-    )
-    if not core > 0:
-        return None
-    cover = np.clip(darkness / core, 0.0, 1.0)
-    smooth = cv2.GaussianBlur(cover.astype(np.float32), (0, 0), 1.0).astype(np.float64)
-    solid = smooth > 0.8
-    clear = smooth < 0.2
-    # Widen the edge band by a pixel either way: its pixels keep their measured coverage.
-    band = ~(solid | clear)
-    band = cv2.dilate(band.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    weight = np.where(band, cover, np.where(solid, 1.0, 0.0))
-    weight_in: F64 = weight * inside
-    return weight_in
-
-
-def _ring_plane(patch: F64, dx: F64, dy: F64, ring: NDArray[np.bool_]) -> F64:
-    """A plane a + b dx + c dy fitted to the ring's pixels, ignoring dark intruders (a
-    neighbouring dot, the board's edge): pixels far below the first fit are dropped and the
-    plane refitted."""
-    values = patch[ring]
-    design = np.column_stack([np.ones(values.size), dx[ring], dy[ring]])
-    keep = np.ones(values.size, dtype=bool)
-    coef: F64 = np.zeros(3)
-    for _ in range(3):
-        coef = np.asarray(np.linalg.lstsq(design[keep], values[keep], rcond=None)[0], np.float64)
-        resid = values - design @ coef
-        spread = 1.4826 * float(np.median(np.abs(resid[keep]))) + 1e-6
-        new_keep = resid > -3.0 * spread
-        if new_keep.sum() < 6 or (new_keep == keep).all():
-            break
-        keep = new_keep
-    plane: F64 = coef[0] + coef[1] * dx + coef[2] * dy
-    return plane
 
 
 # ------------------------------------------------------------------------------------------
@@ -605,38 +643,41 @@ def _ring_plane(patch: F64, dx: F64, dy: F64, ring: NDArray[np.bool_]) -> F64:
 def _explain(
     grey: NDArray[np.float32],
     board: CircleGridBoard,
+    seen: list[SeenBlobs],
     polarities: tuple[Literal["dark", "light"], ...],
-    refusals: list[str],
+    refused: list[RefusedCandidate],
 ) -> str:
-    u8 = np.clip(np.rint(grey), 0, 255).astype(np.uint8)
-    detector = _blob_detector(u8.shape, board)
-    seen = []
-    for pol in polarities:
-        work = u8 if pol == "dark" else 255 - u8
-        group = _dominant_size_group(_blobs(work, detector))
-        if group:
-            size = float(np.median([b.size for b in group]))
-            seen.append((len(group), pol, size))
-        else:
-            seen.append((0, pol, 0.0))
     n = board.n_points
     lines = [
         f"no {board.cols} x {board.rows} circle grid ({n} dots) found in the "
         f"{grey.shape[1]} x {grey.shape[0]} image."
     ]
-    for count, pol, size in seen:
-        if count:
-            lines.append(f"Seen: {count} {pol} dots of about {size:.0f} px across.")
+    counts = []
+    grid_hint = ""
+    for seen_blobs in seen:
+        group = _dominant_size_group(seen_blobs.diameters_px)
+        pol = seen_blobs.polarity
+        if seen_blobs.grid is not None and seen_blobs.grid[2] >= 4:
+            across, down, count = seen_blobs.grid
+            lines.append(f"Seen: {count} {pol} dots in a grid of about {across} x {down}.")
+            counts.append(count)
+            if across * down == count and {across, down} != {board.cols, board.rows}:
+                grid_hint = f"is the board {across} x {down} (--cols {across} --rows {down})?"
+        elif group.size:
+            size = float(np.median(seen_blobs.diameters_px[group]))
+            lines.append(f"Seen: {group.size} {pol} dots of about {size:.0f} px across.")
+            counts.append(int(group.size))
         else:
             lines.append(f"Seen: no {pol} dots of a plausible size.")
-    best = max(seen)
-    hints = []
-    if best[0] and best[0] < n:
+            counts.append(0)
+    best = max(counts) if counts else 0
+    hints = [grid_hint] if grid_hint else []
+    if best and best < n:
         hints.append(
             f"fewer dots than the board has: is the whole board in view (not cut off or "
             f"covered), and is it {board.cols} x {board.rows}?"
         )
-    elif best[0] > n:
+    elif best > n:
         hints.append(
             f"more dots than the board has: is it really {board.cols} x {board.rows}? "
             "Other round things in view count too; crop or mask them."
@@ -648,6 +689,20 @@ def _explain(
         hints.append(f"if the dots are {other}er than the board, use polarity '{other}'")
     hints.append("improve focus and lighting; avoid glare on the board")
     lines.append("Try: " + "; ".join(hints) + ".")
-    if refusals:
-        lines.append("Candidates refused: " + " | ".join(refusals[:4]))
+    if refused:
+        lines.append(
+            "Candidates refused: "
+            + " | ".join(f"{r.method} ({r.polarity} dots): {r.reason}" for r in refused[:4])
+        )
     return " ".join(lines)
+
+
+def _dominant_size_group(diameters: F64) -> NDArray[np.intp]:
+    """The blobs whose size is within a factor of 2 of the most common size."""
+    if not diameters.size:
+        return np.zeros(0, dtype=np.intp)
+    sizes = np.log(diameters)
+    counts = (np.abs(sizes[:, None] - sizes[None, :]) <= 0.35).sum(axis=1)
+    mode = sizes[int(np.argmax(counts))]
+    group: NDArray[np.intp] = np.flatnonzero(np.abs(sizes - mode) <= np.log(2.0))
+    return group

@@ -39,7 +39,18 @@ class ImageError(ValueError):
 
 
 class BoardNotFoundError(ValueError):
-    """The image does not show the board: says what was seen and what to try."""
+    """The image does not show the board: says what was seen and what to try.
+
+    ``diagnostics`` (a :class:`planarcal.detect.DetectionDiagnostics`, or None) holds what the
+    search saw: the blobs of each polarity and each candidate grid with why it was refused;
+    ``calibrate --report`` draws it."""
+
+    def __init__(self, message: str, diagnostics: Any = None) -> None:
+        super().__init__(message)
+        self.diagnostics = diagnostics
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (str(self), self.diagnostics))
 
 
 class CalibrationFileError(ValueError):

@@ -1,0 +1,194 @@
+"""Dark, filled, elliptical blobs in a grey image: the candidates for a board's dots.
+
+The image is thresholded at many grey levels, as OpenCV's SimpleBlobDetector does (a dot is
+darker than its surroundings at some level whatever the lighting), but each level is read by
+connected components and their moments in bulk, so the cost does not grow with the number of
+shapes in view: a 1280 x 720 frame of pure noise costs what a board photograph does. A
+component is kept when it is a filled ellipse: its area matches the ellipse of its second
+moments (a ring, a digit or a stroke does not), its axes are within 1:3 and it does not touch
+the image's border. A blob is a component seen at two or more levels, one inside the other.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+# Grey levels tried: every 15th (a dot 30 grey levels darker than its paper spans two).
+LEVELS = tuple(range(15, 250, 15))
+# A filled ellipse's area over the area of the ellipse of its moments: 1 (digitised: near 1).
+FILL_RANGE = (0.8, 1.2)
+# Second-moment ratio (minor / major): 1:3 axes at most.
+MIN_INERTIA_RATIO = 1.0 / 9.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Blobs:
+    """Blob centres (N, 2) px, equivalent diameters (N,) px and how many grey levels each
+    was seen at (N,)."""
+
+    centres: F64
+    diameters: F64
+    levels: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.diameters)
+
+    def subset(self, keep: NDArray[np.bool_] | NDArray[np.intp]) -> Blobs:
+        return Blobs(self.centres[keep], self.diameters[keep], self.levels[keep])
+
+
+def find_blobs(ink_dark: NDArray[np.uint8], min_diameter: float, max_diameter: float) -> Blobs:
+    """The dark blobs of `ink_dark` whose equivalent diameter is in [min_diameter,
+    max_diameter] px, each seen at two or more grey levels."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    area_range = (np.pi / 4 * min_diameter**2, np.pi / 4 * max_diameter**2)
+    # OpenCV releases the GIL: the levels are read side by side.
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        per_level = list(pool.map(lambda t: _level_components(ink_dark, t, area_range), LEVELS))
+    # Chain each level's components to the previous level's at the same place.
+    sum_xy: list[F64] = []
+    sum_d: list[float] = []
+    count: list[int] = []
+    prev_xy, prev_group = np.zeros((0, 2)), np.zeros(0, dtype=np.intp)
+    for xy, d in per_level:
+        group = np.full(len(d), -1, dtype=np.intp)
+        if len(d) and len(prev_xy):
+            nearest, dist = _nearest(xy, prev_xy)
+            near = dist <= 0.25 * d + 1.0
+            group[near] = prev_group[nearest[near]]
+            # Two components of one level joined to one chain: the nearer keeps it.
+            taken: dict[int, int] = {}
+            for j in np.flatnonzero(near).tolist():
+                g = int(group[j])
+                if g in taken and dist[taken[g]] <= dist[j]:
+                    group[j] = -1
+                    continue
+                if g in taken:
+                    group[taken[g]] = -1
+                taken[g] = j
+        for i in range(len(d)):
+            if group[i] < 0:
+                group[i] = len(count)
+                sum_xy.append(np.zeros(2))
+                sum_d.append(0.0)
+                count.append(0)
+            g = int(group[i])
+            sum_xy[g] = sum_xy[g] + xy[i]
+            sum_d[g] += float(d[i])
+            count[g] += 1
+        prev_xy, prev_group = xy, group
+    if not count:
+        return Blobs(np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64))
+    c = np.array(count, dtype=np.int64)
+    seen = c >= 2
+    centres = (np.array(sum_xy) / c[:, None])[seen]
+    diameters = (np.array(sum_d) / c)[seen]
+    return _one_per_place(Blobs(centres, diameters, c[seen]))
+
+
+def _level_components(
+    ink_dark: NDArray[np.uint8], level: int, area_range: tuple[float, float]
+) -> tuple[F64, F64]:
+    """Centres (K, 2) and equivalent diameters (K,) of the filled ellipses darker than
+    `level`."""
+    import cv2
+
+    h, w = ink_dark.shape
+    _, mask = cv2.threshold(ink_dark, level - 1, 1, cv2.THRESH_BINARY_INV)
+    _, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    area = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
+    x0, y0 = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
+    bw, bh = stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT]
+    ok = (area >= area_range[0]) & (area <= area_range[1])
+    ok &= (x0 > 0) & (y0 > 0) & (x0 + bw < w) & (y0 + bh < h)
+    # An ellipse fills at least half its bounding box (pi/8 at 1:3 and 45 degrees, digitised).
+    ok &= area >= 0.38 * bw * bh
+    ok[0] = False  # the background
+    ids = np.flatnonzero(ok)
+    if ids.size == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    # Second moments of the candidates, in bulk over their bounding boxes' pixels.
+    x0, y0, bw, bh = x0[ids], y0[ids], bw[ids], bh[ids]
+    sizes = (bw * bh).astype(np.int64)
+    owner = np.repeat(np.arange(len(ids)), sizes)
+    offset = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    px = x0[owner] + offset % bw[owner]
+    py = y0[owner] + offset // bw[owner]
+    mine = labels[py, px] == ids[owner]
+    owner = owner[mine]
+    dx = px[mine] - centroids[ids[owner], 0]
+    dy = py[mine] - centroids[ids[owner], 1]
+    k = len(ids)
+    a = area[ids]
+    sxx = np.bincount(owner, dx * dx, minlength=k) / a + 1.0 / 12.0
+    syy = np.bincount(owner, dy * dy, minlength=k) / a + 1.0 / 12.0
+    sxy = np.bincount(owner, dx * dy, minlength=k) / a
+    ids = ids[_filled_ellipses(a, sxx, syy, sxy)]
+    return centroids[ids].astype(np.float64), np.sqrt(4.0 * area[ids] / np.pi)
+
+
+def _filled_ellipses(area: F64, sxx: F64, syy: F64, sxy: F64) -> NDArray[np.bool_]:
+    """Which shapes of these areas and second moments (each pixel a unit square, its own
+    1/12 included) are filled ellipses of moderate elongation: a filled ellipse with semi-axes
+    a, b has second moments a^2/4, b^2/4 and area pi a b."""
+    half_trace = 0.5 * (sxx + syy)
+    root = np.sqrt(np.maximum(0.25 * (sxx - syy) ** 2 + sxy**2, 0.0))
+    major, minor = half_trace + root, np.maximum(half_trace - root, 1e-12)
+    fill = area / (4.0 * np.pi * np.sqrt(major * minor))
+    keep: NDArray[np.bool_] = (
+        (fill >= FILL_RANGE[0]) & (fill <= FILL_RANGE[1]) & (minor / major >= MIN_INERTIA_RATIO)
+    )
+    return keep
+
+
+def _nearest(a: F64, b: F64) -> tuple[NDArray[np.intp], F64]:
+    """For each point of `a`, the index of the nearest point of `b` and its distance."""
+    index = np.empty(len(a), dtype=np.intp)
+    dist = np.empty(len(a))
+    for s in range(0, len(a), 1024):
+        d2 = ((a[s : s + 1024, None, :] - b[None, :, :]) ** 2).sum(axis=2)
+        j = d2.argmin(axis=1)
+        index[s : s + 1024] = j
+        dist[s : s + 1024] = np.sqrt(d2[np.arange(len(j)), j])
+    return index, dist
+
+
+def _one_per_place(blobs: Blobs) -> Blobs:
+    """Blobs whose centres lie within each other's radius are one blob seen twice (a chain of
+    levels broken by a level where it merged with a neighbour): keep the one seen at most
+    levels."""
+    if len(blobs) < 2:
+        return blobs
+    order = np.argsort(-blobs.levels, kind="stable")
+    kept: list[int] = []
+    taken = np.zeros(len(blobs), dtype=bool)
+    xy, d = blobs.centres, blobs.diameters
+    cell = max(float(np.median(d)), 1.0)
+    buckets: dict[tuple[int, int], list[int]] = {}
+    for i in order:
+        if taken[i]:
+            continue
+        kx, ky = int(xy[i, 0] // cell), int(xy[i, 1] // cell)
+        reach = int(np.ceil(0.5 * d[i] / cell)) + 1
+        clash = False
+        for bx in range(kx - reach, kx + reach + 1):
+            for by in range(ky - reach, ky + reach + 1):
+                for j in buckets.get((bx, by), ()):
+                    if np.hypot(*(xy[i] - xy[j])) < 0.5 * max(d[i], d[j]):
+                        clash = True
+                        break
+                if clash:
+                    break
+            if clash:
+                break
+        taken[i] = True
+        if not clash:
+            kept.append(int(i))
+            buckets.setdefault((kx, ky), []).append(int(i))
+    return blobs.subset(np.array(sorted(kept), dtype=np.intp))
