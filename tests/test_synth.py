@@ -742,6 +742,50 @@ def test_height_zero_renders_as_before() -> None:
     )
 
 
+# Images of symmetric boards with origin markers (one as wide as the pitch), tilted, through
+# lens distortion, as rendered before layouts, enlarged dots, marks and textures existed.
+MARKER_SCENES_SHA256 = (
+    "79ef640709f0271e265553db02fd0141fddd42e53834d184f080c29feb402ce2",
+    "8ee59fc960fd84d0ac38a5ad5446235acdb26ff3b0b94b4d90db62e658150051",
+)
+
+
+def test_symmetric_boards_render_as_before() -> None:
+    """The renderer's general board (layouts, per-dot sizes) draws the symmetric boards it
+    drew before bit for bit, and the new options at their defaults change nothing."""
+    camera = CameraModel(width=160, height=120, focal_px=300.0, k1=-0.2, k2=0.05)
+    pose = PlanePose(330.0, tilt_deg=12.0, tilt_axis_deg=30.0, roll_deg=5.0, look_at_mm=(40, 30))
+    wide = CircleGridBoard(5, 4, 20.0, 8.0, origin_marker=True, marker_diameter=20.0)
+    first = render_scene(camera, pose, board=wide, board_origin_mm=(5.0, 3.0), board_angle_deg=4.0)
+    second = render_scene(
+        camera,
+        pose,
+        board=CircleGridBoard(6, 5, 15.0, 9.0, origin_marker=True),
+        board_angle_deg=-20.0,
+        light_on_dark=True,
+        noise_sigma=2.0,
+        blur_sigma_px=0.7,
+        seed=4,
+        color=True,
+        supersample=5,
+    )
+    digests = tuple(hashlib.sha256(s.image.tobytes()).hexdigest() for s in (first, second))
+    assert digests == MARKER_SCENES_SHA256
+    defaults = render_scene(
+        camera,
+        pose,
+        board=wide,
+        board_origin_mm=(5.0, 3.0),
+        board_angle_deg=4.0,
+        enlarged_dots={},
+        marks=(),
+        table_texture=0.0,
+        paper_texture=0.0,
+    )
+    np.testing.assert_array_equal(defaults.image, first.image)
+    np.testing.assert_array_equal(first.dot_diameters_mm, wide.dot_diameters())
+
+
 @pytest.mark.parametrize("side_grey", [None, 95.0], ids=["dark-walls", "walls-like-table"])
 def test_detection_finds_the_top_of_a_raised_object(side_grey: float | None) -> None:
     """The paper's detection chain outlines a raised object's top, not its base or its wall:
