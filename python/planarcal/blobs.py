@@ -149,14 +149,10 @@ def _filled_ellipses(area: F64, sxx: F64, syy: F64, sxy: F64) -> NDArray[np.bool
 
 def _nearest(a: F64, b: F64) -> tuple[NDArray[np.intp], F64]:
     """For each point of `a`, the index of the nearest point of `b` and its distance."""
-    index = np.empty(len(a), dtype=np.intp)
-    dist = np.empty(len(a))
-    for s in range(0, len(a), 1024):
-        d2 = ((a[s : s + 1024, None, :] - b[None, :, :]) ** 2).sum(axis=2)
-        j = d2.argmin(axis=1)
-        index[s : s + 1024] = j
-        dist[s : s + 1024] = np.sqrt(d2[np.arange(len(j)), j])
-    return index, dist
+    from scipy.spatial import cKDTree
+
+    dist, index = cKDTree(b).query(a)
+    return np.asarray(index, dtype=np.intp), np.asarray(dist, dtype=np.float64)
 
 
 def _one_per_place(blobs: Blobs) -> Blobs:

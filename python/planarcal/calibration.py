@@ -278,11 +278,13 @@ class Calibration:
         lens: LensChoice = "auto",
         intrinsics: CameraIntrinsics | None = None,
         polarity: str = "auto",
+        turned: bool = False,
     ) -> Calibration:
-        """Detects `board` in `image` (array or path) and calibrates from it."""
+        """Detects `board` in `image` (array or path) and calibrates from it (``polarity``
+        and ``turned`` as in detect_board)."""
         from planarcal.detect import detect_board
 
-        detection = detect_board(image, board, polarity=polarity)  # type: ignore[arg-type]
+        detection = detect_board(image, board, polarity=polarity, turned=turned)  # type: ignore[arg-type]
         return cls.from_detection(
             detection, solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
         )

@@ -147,7 +147,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
     image = _read_image(args)
     try:
-        detection = detect_board(image, board, polarity=args.polarity)
+        detection = detect_board(image, board, polarity=args.polarity, turned=args.turned)
     except BoardNotFoundError as e:
         if args.report is not None:
             # What the search saw is what it takes to fix the picture: draw it, then fail.
@@ -372,6 +372,12 @@ def build_parser() -> argparse.ArgumentParser:
         default="auto",
         choices=("auto", "dark", "light"),
         help="dark dots on light paper, light on dark, or try both",
+    )
+    p.add_argument(
+        "--turned",
+        action="store_true",
+        help="accept a board without an origin marker that lies turned by 90 degrees in the "
+        "image (refused by default: usually --cols and --rows are swapped)",
     )
     p.add_argument(
         "--lens",

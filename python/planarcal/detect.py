@@ -64,9 +64,9 @@ MAX_GRID_RESIDUAL_PITCH = 1.0 / 3.0
 MARKER_AREA_RATIO = 1.35
 # Smallest dot looked for (px across).
 MIN_DOT_PX = 3.5
-# OpenCV's finders run only below this many blobs in view: beyond it they can take minutes.
+# OpenCV's finder runs only below this many blobs in view: beyond it it can take minutes (its
+# clustering variant, which the lattice search makes unnecessary, is never run).
 OPENCV_MAX_BLOBS = 600
-OPENCV_CLUSTERING_MAX_BLOBS = 250
 
 AMBIGUOUS_RULE = (
     "no origin marker: dot 0 is the corner dot nearest the image's top-left corner, of the "
@@ -87,8 +87,8 @@ class BoardDetection:
     image_size: tuple[int, int]
     """(width, height) of the image in pixels."""
     method: str
-    """Which finder succeeded: "lattice" (planarcal's own), "opencv" (findCirclesGrid's
-    defaults) or "opencv-clustering"."""
+    """Which finder succeeded: "lattice" (planarcal's own) or "opencv" (findCirclesGrid's
+    defaults)."""
     polarity: Literal["dark", "light"]
     """Dark dots on a light board, or light dots on a dark one."""
     dot_diameters_px: F64
@@ -227,7 +227,8 @@ def _candidates(
     """(method, points (n, 2) in a reading of the board's order, blob diameters (n,) px,
     which dots are filled in where no blob was)."""
     n = board.n_points
-    for lattice in grow_lattices(blobs, min_nodes=min(n, 4)):
+    # A lattice three times the board's size is no board of this size: it stops growing.
+    for lattice in grow_lattices(blobs, min_nodes=min(n, 4), max_nodes=max(3 * n, n + 200)):
         placements = place_board(lattice, board)
         pts = blobs.centres[lattice.blob]
         cols, rows = lattice_extent(lattice, blobs.centres)
@@ -259,41 +260,39 @@ def _candidates(
                     f"the board's {board.cols} x {board.rows} does not fill",
                 )
             )
-    for clustering, limit in ((False, OPENCV_MAX_BLOBS), (True, OPENCV_CLUSTERING_MAX_BLOBS)):
-        if polarity == "dark" and len(blobs) <= limit:
-            for method, points in _opencv_candidates(u8, board, clustering=clustering):
-                yield method, points, _sizes_at(points, blobs), np.zeros(len(points), bool)
+    # OpenCV needs the board's dots among the blobs its detector keeps (25 to 5000 px^2:
+    # 5.6 to 80 px across), and runs away on thousands of them.
+    in_its_range = int(((blobs.diameters >= 5.6) & (blobs.diameters <= 80.0)).sum())
+    if polarity == "dark" and 0.5 * n <= in_its_range and len(blobs) <= OPENCV_MAX_BLOBS:
+        for points in _opencv_grid(u8, board):
+            yield "opencv", points, _sizes_at(points, blobs), np.zeros(len(points), bool)
 
 
-def _opencv_candidates(
-    u8: NDArray[np.uint8], board: CircleGridBoard, *, clustering: bool
-) -> Iterator[tuple[str, F64]]:
+def _opencv_grid(u8: NDArray[np.uint8], board: CircleGridBoard) -> Iterator[F64]:
     """OpenCV's findCirclesGrid with its default blob detector, as a user would call it:
     the floor planarcal never falls below."""
     import cv2
 
-    flags = cv2.CALIB_CB_ASYMMETRIC_GRID if board.layout == "asymmetric" else 0
-    flags |= cv2.CALIB_CB_SYMMETRIC_GRID if board.layout == "symmetric" else 0
-    if clustering:
-        flags |= cv2.CALIB_CB_CLUSTERING
+    asymmetric = board.layout == "asymmetric"
+    flags = cv2.CALIB_CB_ASYMMETRIC_GRID if asymmetric else cv2.CALIB_CB_SYMMETRIC_GRID
     try:
         found, centres = cv2.findCirclesGrid(u8, (board.cols, board.rows), flags=flags)
     except cv2.error:
         return
     if not found or centres is None or len(centres) != board.n_points:
         return
-    points = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
-    yield ("opencv-clustering" if clustering else "opencv"), points
+    yield np.asarray(centres, dtype=np.float64).reshape(-1, 2)
 
 
 def _sizes_at(points: F64, blobs: Blobs) -> F64:
     """The diameter of the blob at each point (half the spacing where no blob is)."""
+    from scipy.spatial import cKDTree
+
     spacing = _nearest_distance(points)
     sizes = 0.5 * spacing
     if len(blobs):
-        d = np.hypot(*(points[:, None, :] - blobs.centres[None, :, :]).transpose(2, 0, 1))
-        nearest = d.argmin(axis=1)
-        close = d[np.arange(len(points)), nearest] < 0.3 * spacing
+        d, nearest = cKDTree(blobs.centres).query(points)
+        close = d < 0.3 * spacing
         sizes[close] = blobs.diameters[nearest[close]]
     return sizes
 
@@ -399,16 +398,16 @@ def _checked_by_neighbours(
     that shows much less ink than its neighbours, keeps their prediction instead, flagged
     as not refined."""
     world = board.world_points()
-    reach = 2.01 * board.neighbour_distance
-    d_world = np.hypot(*(world[:, None, :] - world[None, :, :]).transpose(2, 0, 1))
+    neighbourhoods = _around(world, 2.01 * board.neighbour_distance)
     out = centres.copy()
     ok = refined.copy()
     doubts = []
     limit = max(1.0, NEIGHBOUR_DISAGREEMENT_PITCH * pitch)
-    for k in range(len(world)):
-        around = (d_world[k] > 0) & (d_world[k] <= reach)
-        if around.sum() < 5:
+    for k, near in enumerate(neighbourhoods):
+        if len(near) < 5:
             continue
+        around = np.zeros(len(world), dtype=bool)
+        around[near] = True
         try:
             h = estimate_homography(world[around], centres[around])
             predicted = transform_points(h, world[[k]])[0]
@@ -440,20 +439,27 @@ def _checked_by_neighbours(
 
 def _nearest_distance(points: F64) -> F64:
     """Each point's distance to its nearest other point."""
-    d = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
-    np.fill_diagonal(d, np.inf)
-    nearest: F64 = d.min(axis=1)
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(points).query(points, k=2)
+    nearest: F64 = np.asarray(dist[:, 1], dtype=np.float64)
     return nearest
+
+
+def _around(points: F64, radius: float) -> list[list[int]]:
+    """For each point, the other points within `radius`."""
+    from scipy.spatial import cKDTree
+
+    near = cKDTree(points).query_ball_point(points, r=radius)
+    return [[j for j in js if j != k] for k, js in enumerate(near)]
 
 
 def _enlarged(points: F64, areas: F64, pitch: float) -> NDArray[np.bool_]:
     """Dots whose ink area exceeds the median of the dots around them (within two pitches)
     by MARKER_AREA_RATIO."""
-    d = np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
     out = np.zeros(len(points), dtype=bool)
-    for k in range(len(points)):
-        around = (d[k] > 0) & (d[k] < 2.2 * pitch)
-        if around.sum() >= 2:
+    for k, around in enumerate(_around(points, 2.2 * pitch)):
+        if len(around) >= 2:
             out[k] = areas[k] > MARKER_AREA_RATIO * float(np.median(areas[around]))
     return out
 
@@ -702,7 +708,10 @@ def _dominant_size_group(diameters: F64) -> NDArray[np.intp]:
     if not diameters.size:
         return np.zeros(0, dtype=np.intp)
     sizes = np.log(diameters)
-    counts = (np.abs(sizes[:, None] - sizes[None, :]) <= 0.35).sum(axis=1)
+    ordered = np.sort(sizes)
+    counts = np.searchsorted(ordered, sizes + 0.35, "right") - np.searchsorted(
+        ordered, sizes - 0.35, "left"
+    )
     mode = sizes[int(np.argmax(counts))]
     group: NDArray[np.intp] = np.flatnonzero(np.abs(sizes - mode) <= np.log(2.0))
     return group

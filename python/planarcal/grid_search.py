@@ -104,37 +104,29 @@ def outer_ring(board: CircleGridBoard) -> I64:
 def neighbours(centres: F64, k: int = K_NEIGHBOURS) -> tuple[NDArray[np.intp], F64]:
     """The k nearest other blobs of each blob, nearest first: indices (N, k') and distances
     (N, k'), k' = min(k, N - 1)."""
-    n = len(centres)
-    k = min(k, n - 1)
-    index = np.empty((n, k), dtype=np.intp)
-    dist = np.empty((n, k))
-    for s in range(0, n, 512):
-        d2 = ((centres[s : s + 512, None, :] - centres[None, :, :]) ** 2).sum(axis=2)
-        rows = np.arange(d2.shape[0])
-        d2[rows, s + rows] = np.inf
-        part = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < n - 1 else np.argsort(d2, axis=1)
-        part = part[:, :k]
-        pd = np.take_along_axis(d2, part, axis=1)
-        order = np.argsort(pd, axis=1)
-        index[s : s + 512] = np.take_along_axis(part, order, axis=1)
-        dist[s : s + 512] = np.sqrt(np.take_along_axis(pd, order, axis=1))
-    return index, dist
+    from scipy.spatial import cKDTree
+
+    k = min(k, len(centres) - 1)
+    dist, index = cKDTree(centres).query(centres, k=k + 1)
+    # The nearest of each is itself (or a blob at the very same place: drop column 0 all the
+    # same, one of the two is then the other's neighbour).
+    return np.asarray(index[:, 1:], dtype=np.intp), np.asarray(dist[:, 1:], dtype=np.float64)
 
 
-def grow_lattices(blobs: Blobs, min_nodes: int) -> list[Lattice]:
-    """Lattices of at least `min_nodes` blobs, largest first, each blob in at most one."""
+def grow_lattices(blobs: Blobs, min_nodes: int, max_nodes: int) -> list[Lattice]:
+    """Lattices of at least `min_nodes` blobs, largest first, each blob in at most one; a
+    lattice stops growing at `max_nodes` (it is then larger than any board looked for)."""
     n = len(blobs)
     if n < max(min_nodes, 4):
         return []
     xy, size = blobs.centres, blobs.diameters
-    near, dist = neighbours(xy)
-    seeds = _seeds(xy, size, near, dist)
+    near, _ = neighbours(xy)
     used = np.zeros(n, dtype=bool)
     found: list[Lattice] = []
-    for seed, u, v in seeds[:MAX_SEEDS]:
+    for seed, u, v in _seeds(xy, size, near)[:MAX_SEEDS]:
         if used[seed]:
             continue
-        lattice = _grow(seed, u, v, xy, size, near, used)
+        lattice = _grow(seed, u, v, xy, size, near, used, max_nodes)
         if lattice is None:
             continue
         used[lattice.blob] = True
@@ -144,38 +136,43 @@ def grow_lattices(blobs: Blobs, min_nodes: int) -> list[Lattice]:
     return found
 
 
-def _seeds(xy: F64, size: F64, near: NDArray[np.intp], dist: F64) -> list[tuple[int, F64, F64]]:
+def _seeds(xy: F64, size: F64, near: NDArray[np.intp]) -> list[tuple[int, F64, F64]]:
     """(blob, step u, step v) for every blob whose neighbours form a lattice cell around it,
-    best first: most of the eight cell neighbours found, then the most uniform in size."""
-    out: list[tuple[float, int, F64, F64]] = []
-    for i in range(len(xy)):
-        similar = [j for j in near[i, :8] if 0.6 < size[j] / size[i] < 1.6]
-        if len(similar) < 2:
-            continue
-        u = xy[similar[0]] - xy[i]
-        lu = float(np.hypot(*u))
-        v = None
-        for j in similar[1:]:
-            w = xy[j] - xy[i]
-            lw = float(np.hypot(*w))
-            cos = float(u @ w) / (lu * lw)
-            if abs(cos) < 0.5 and 0.5 < lw / lu < 2.0:
-                v = w
-                break
-        if v is None:
-            continue
-        tol = ACCEPT_STEP_FRACTION * min(lu, float(np.hypot(*v)))
-        cell = [a * u + b * v for a in (-1, 0, 1) for b in (-1, 0, 1) if (a, b) != (0, 0)]
-        hits = 0
-        for p in cell:
-            d = np.hypot(*(xy[near[i]] - (xy[i] + p)).T)
-            hits += int(d.min() < tol)
-        if hits < 3:
-            continue
-        spread = float(np.std(np.log(size[near[i, :8]] / size[i])))
-        out.append((hits - spread, i, u, v))
-    out.sort(key=lambda t: -t[0])
-    return [(i, u, v) for _, i, u, v in out]
+    best first: most of the eight cell neighbours found, then the most uniform in size.
+    u is the nearest neighbour of about the same size, v the next one at 60 to 120 degrees to
+    it and of about the same length."""
+    n, k = near.shape
+    k8 = min(8, k)
+    ring = near[:, :k8]
+    ratio = size[ring] / size[:, None]
+    similar = (ratio > 0.6) & (ratio < 1.6)
+    vec = xy[ring] - xy[:, None, :]  # (n, k8, 2)
+    length = np.hypot(vec[..., 0], vec[..., 1])
+    first = np.argmax(similar, axis=1)
+    has_u = similar.any(axis=1)
+    rows = np.arange(n)
+    u = vec[rows, first]
+    lu = length[rows, first]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = (vec @ u[:, :, None])[..., 0] / (length * lu[:, None])
+        rel = length / lu[:, None]
+    ok_v = similar & (np.abs(cos) < 0.5) & (rel > 0.5) & (rel < 2.0)
+    second = np.argmax(ok_v, axis=1)
+    has = has_u & ok_v.any(axis=1)
+    v = vec[rows, second]
+    lv = length[rows, second]
+    # How many of the eight cell neighbours (+-u, +-v, +-u+-v) are blobs.
+    tol = ACCEPT_STEP_FRACTION * np.minimum(lu, lv)
+    offsets = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1) if (a, b) != (0, 0)])
+    cell = offsets[None, :, 0, None] * u[:, None, :] + offsets[None, :, 1, None] * v[:, None, :]
+    around = xy[near] - xy[:, None, :]  # (n, k, 2)
+    gap = np.hypot(*(cell[:, :, None, :] - around[:, None, :, :]).transpose(3, 0, 1, 2))
+    hits = (gap.min(axis=2) < tol[:, None]).sum(axis=1)
+    spread = np.std(np.log(ratio), axis=1)
+    score = np.where(has & (hits >= 3), hits - spread, -np.inf)
+    order = np.argsort(-score, kind="stable")
+    order = order[np.isfinite(score[order])]
+    return [(int(i), u[i], v[i]) for i in order]
 
 
 _STEPS = ((1, 0), (-1, 0), (0, 1), (0, -1))
@@ -189,18 +186,22 @@ def _grow(
     size: F64,
     near: NDArray[np.intp],
     used: NDArray[np.bool_],
+    max_nodes: int,
 ) -> Lattice | None:
     """The lattice grown from `seed` with first steps u (along i) and v (along j)."""
     at: dict[tuple[int, int], int] = {(0, 0): seed}
     taken = {seed}
     # The step that reached each node, per axis: continued to predict the next node.
     step: dict[tuple[int, int], tuple[F64, F64]] = {(0, 0): (u, v)}
-    sizes = [float(size[seed])]
+    # The dots' size: the seed cell's (printed marks are smaller, enlarged dots larger).
+    cell = near[seed, :8]
+    smallest = MIN_SIZE_OF_MEDIAN * float(np.median(np.append(size[cell], size[seed])))
     queue: deque[tuple[int, int]] = deque([(0, 0)])
-    while queue:
+    while queue and len(at) < max_nodes:
         node = queue.popleft()
         here = at[node]
         su, sv = step[node]
+        cand = near[here]
         for di, dj in _STEPS:
             nxt = (node[0] + di, node[1] + dj)
             if nxt in at:
@@ -209,22 +210,19 @@ def _grow(
             # Continue the step that reached this node, or the cell's first steps.
             delta = xy[here] - xy[at[back]] if back in at else di * su + dj * sv
             predicted = xy[here] + delta
-            reach = ACCEPT_STEP_FRACTION * float(np.hypot(*delta))
-            cand = near[here]
+            stride = float(np.hypot(delta[0], delta[1]))
+            reach = ACCEPT_STEP_FRACTION * stride
             d = np.hypot(*(xy[cand] - predicted).T)
-            order = np.argsort(d)
-            median = float(np.median(sizes))
-            for j in order:
+            for j in np.argsort(d):
                 if d[j] >= reach:
                     break
                 b = int(cand[j])
                 if b in taken or used[b]:
                     continue
-                if not MIN_SIZE_OF_MEDIAN * median <= size[b] <= MAX_SIZE_OF_STEP * reach * 3:
+                if not smallest <= size[b] <= MAX_SIZE_OF_STEP * stride:
                     continue
                 at[nxt] = b
                 taken.add(b)
-                sizes.append(float(size[b]))
                 new_step = xy[b] - xy[here]
                 if di:
                     step[nxt] = (di * new_step, sv)
@@ -259,7 +257,8 @@ def place_board(lattice: Lattice, board: CircleGridBoard) -> list[Placement]:
     """The placements of the board's dot pattern on the lattice's nodes with the fewest
     missing dots (at most max_holes(board): a dot hidden by a mark or glare is filled in by
     its neighbours and must then be measured), one per distinct set of nodes (the board's
-    own symmetries give the same set several times; detect.py chooses the reading)."""
+    own symmetries give the same set several times; detect.py chooses the reading). Two
+    are enough to know the board is not this lattice: the search stops there."""
     pattern = board_pattern(board)
     width, height = (lattice.nodes.max(axis=0) + 1).tolist()
     occupied = np.full((width, height), -1, dtype=np.intp)
@@ -280,6 +279,8 @@ def place_board(lattice: Lattice, board: CircleGridBoard) -> list[Placement]:
                 holes = int((at < 0).sum())
                 if holes > allowed:
                     continue
+                if sum(1 for h, _ in out if h == 0) >= 2 and holes:
+                    continue
                 key = np.sort(nodes[:, 0] * height + nodes[:, 1]).tobytes()
                 if key in seen:
                     continue
@@ -296,6 +297,8 @@ def place_board(lattice: Lattice, board: CircleGridBoard) -> list[Placement]:
                         ),
                     )
                 )
+                if sum(1 for h, _ in out if h == 0) >= 2:
+                    return [p for h, p in out if h == 0]
     if not out:
         return []
     fewest = min(h for h, _ in out)

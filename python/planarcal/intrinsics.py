@@ -975,9 +975,10 @@ def calibrate_camera(
             det = view
         else:
             try:
-                det = detect_board(view, board)
+                # Each view has its own pose: a board turned in one of them is no mistake.
+                det = detect_board(view, board, turned=True)
             except BoardNotFoundError as e:
-                raise BoardNotFoundError(f"{_view_name(view, i)}: {e}") from None
+                raise BoardNotFoundError(f"{_view_name(view, i)}: {e}", e.diagnostics) from None
             except ImageError as e:
                 raise ImageError(f"{_view_name(view, i)}: {e}") from None
         if detections and det.image_size != detections[0].image_size:
