@@ -215,7 +215,10 @@ def test_calibrate_failures_say_what_is_wrong(images: dict[str, Path], tmp_path:
             "no 10 x 8 circle grid",
         ),
         (("calibrate", images["objects"], "-o", out), "no 14 x 10 circle grid"),
-        (("calibrate", images["board"], "--pitch", "5", "-o", out), "diameter must be smaller"),
+        (
+            ("calibrate", images["board"], "--pitch", "5", "--diameter", "10", "-o", out),
+            "diameter must be smaller",
+        ),
         (("calibrate", "-o", out), "give an IMAGE"),
     ]
     junk = tmp_path / "junk.png"
