@@ -710,7 +710,7 @@ def _explain(
             lines.append(f"Seen: {count} {pol} dots in a grid of about {across} x {down}.")
             counts.append(count)
             if across * down == count and {across, down} != {board.cols, board.rows}:
-                grid_hint = f"is the board {across} x {down} (--cols {across} --rows {down})?"
+                grid_hint = f"or is the board {across} x {down} (--cols {across} --rows {down})?"
         elif group.size:
             size = float(np.median(seen_blobs.diameters_px[group]))
             lines.append(f"Seen: {group.size} {pol} dots of about {size:.0f} px across.")
@@ -719,7 +719,7 @@ def _explain(
             lines.append(f"Seen: no {pol} dots of a plausible size.")
             counts.append(0)
     best = max(counts) if counts else 0
-    hints = [grid_hint] if grid_hint else []
+    hints = []
     if best and best < n:
         hints.append(
             f"fewer dots than the board has: is the whole board in view (not cut off or "
@@ -732,6 +732,8 @@ def _explain(
         )
     else:
         hints.append("check the board's size (--cols, --rows) and that it is in view")
+    if grid_hint:
+        hints.append(grid_hint)
     if len(polarities) == 1:
         other = "light" if polarities[0] == "dark" else "dark"
         hints.append(f"if the dots are {other}er than the board, use polarity '{other}'")
