@@ -150,12 +150,17 @@ class CircleGridBoard:
         return d
 
     def describe(self) -> str:
-        """One line for people: '10 x 8 dots of 15 mm, 25 mm apart (asymmetric), origin
-        marker'."""
-        size = "of unknown size" if self.diameter is None else f"of {self.diameter:g} mm"
-        text = f"{self.cols} x {self.rows} dots {size}, {self.pitch:g} mm apart"
+        """One line for people: '10 x 8 dots of 15 mm, 25 mm apart, origin marker', or for
+        the asymmetric layout '4 x 11 dots of 15 mm in an asymmetric grid: rows 20 mm apart,
+        dots 40 mm apart along a row'."""
+        size = "" if self.diameter is None else f" of {self.diameter:g} mm"
         if self.layout == "asymmetric":
-            text += " (asymmetric grid: rows offset by half a dot spacing)"
+            text = (
+                f"{self.cols} x {self.rows} dots{size} in an asymmetric grid: rows "
+                f"{self.pitch:g} mm apart, dots {2 * self.pitch:g} mm apart along a row"
+            )
+        else:
+            text = f"{self.cols} x {self.rows} dots{size}, {self.pitch:g} mm apart"
         if self.origin_marker:
             text += ", origin marker"
         return text

@@ -336,12 +336,7 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
     lines = []
     if cal.board is not None:
         b = cal.board
-        # A board may leave its dot diameter unknown (measured from the image instead).
-        across = "" if b.diameter is None else f", {b.diameter:g} mm across"
-        lines.append(
-            f"Board: {b.cols} x {b.rows} dots{across}, {b.pitch:g} mm apart"
-            + (", origin marker" if b.origin_marker else "")
-        )
+        lines.append(f"Board: {b.describe()}")
     if detection is not None:
         w, h = detection.image_size
         lines.append(
