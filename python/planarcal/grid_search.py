@@ -238,7 +238,7 @@ def _grow(
 
 
 # The eight turns and mirrors of a square lattice, as integer 2 x 2 matrices.
-_SYMMETRIES = tuple(
+LATTICE_SYMMETRIES = tuple(
     np.array(m, dtype=np.int64)
     for m in (
         [[1, 0], [0, 1]],
@@ -266,7 +266,7 @@ def place_board(lattice: Lattice, board: CircleGridBoard) -> list[Placement]:
     allowed = max_holes(board)
     seen: set[bytes] = set()
     out: list[tuple[int, Placement]] = []
-    for m in _SYMMETRIES:
+    for m in LATTICE_SYMMETRIES:
         turned = pattern @ m.T
         turned -= turned.min(axis=0)
         span = turned.max(axis=0)
