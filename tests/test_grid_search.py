@@ -64,9 +64,9 @@ def test_marks_off_the_lattice_and_small_marks_on_it_are_left_out() -> None:
     board = CircleGridBoard(7, 5, 20.0, 10.0)
     blobs = _grid_blobs(board)
     world = board.world_points()
-    # Printed numbers beside the dots (off the lattice, dot-sized), small marks one row above
-    # the board (on the lattice, a third of a dot), an enlarged dot is on the board itself.
-    beside = planarcal.transform_points(H, world[::3] + [9.0, 7.0])
+    # Printed numbers beside the dots (off the lattice, dot-sized) and small marks one row
+    # above the board (on the lattice, a third of a dot).
+    beside = planarcal.transform_points(H, world[::3] + np.array([9.0, 7.0]))
     above = planarcal.transform_points(H, np.column_stack([world[:7, 0], np.full(7, -20.0)]))
     cluttered = _with(
         blobs,
