@@ -375,9 +375,9 @@ def _finish(
     )
 
 
-# A dot this far from where its neighbours put it (in pitches; at least 1 px; real photographs
-# stay under 0.1 at the board's edges, where the prediction extrapolates) is not measured
-# right (a mark or glare over it, a dot split in two) and takes their prediction instead.
+# A dot this far from where its neighbours put it (in pitches) is not measured right (a mark or
+# glare over it, a dot split in two) and takes their prediction instead; nearer dots are
+# judged against how well the board's dots agree on the whole (_checked_by_neighbours).
 NEIGHBOUR_DISAGREEMENT_PITCH = 0.15
 # A dot with less ink than this fraction of its neighbours' is partly hidden.
 MIN_AREA_OF_NEIGHBOURS = 0.5
@@ -399,7 +399,6 @@ def _checked_by_neighbours(
     dots around it. More such dots than a board may miss is no board: refused."""
     world = board.world_points()
     neighbourhoods = _around(world, 2.01 * board.neighbour_distance)
-    surrounded = max(len(near) for near in neighbourhoods)
     trusted = np.ones(len(world), dtype=bool)
     why: dict[int, str] = {}
     for k, near in enumerate(neighbourhoods):
@@ -413,13 +412,11 @@ def _checked_by_neighbours(
             why[k] = "much less ink than its neighbours"
     predicted = _predict_from_neighbours(world, centres, world, board, known=trusted)
     gap = np.hypot(*(centres - predicted).T)
-    # Far beyond how well the dots agree with their neighbours on the whole: a dot at the
-    # board's edge is extrapolated, through a strong lens three times as loosely (real
-    # photographs' edge dots reach 12 times the median gap), and never more than a tenth of
-    # the pitch off, nor flagged within a pixel.
+    # Far beyond how well the dots agree with their neighbours on the whole (ten times the
+    # median gap: real photographs' good dots stay within six, through a strong lens and at
+    # the board's edges), at most NEIGHBOUR_DISAGREEMENT_PITCH, and never within a pixel.
     typical = float(np.nanmedian(gap)) if np.isfinite(gap).any() else 0.0
-    loose = np.array([3.0 if len(near) < surrounded else 1.0 for near in neighbourhoods])
-    limit = np.clip(10.0 * typical * loose, 1.0, max(1.0, NEIGHBOUR_DISAGREEMENT_PITCH * pitch))
+    limit = float(np.clip(10.0 * typical, 1.0, max(1.0, NEIGHBOUR_DISAGREEMENT_PITCH * pitch)))
     allowed = max(2, max_holes(board))
     while len(why) <= allowed:
         excess = np.where(trusted & np.isfinite(gap), gap / limit, 0.0)
