@@ -52,44 +52,36 @@ def find_blobs(ink_dark: NDArray[np.uint8], min_diameter: float, max_diameter: f
     with ThreadPoolExecutor(max_workers=2) as pool:
         per_level = list(pool.map(lambda t: _level_components(ink_dark, t, area_range), LEVELS))
     # Chain each level's components to the previous level's at the same place.
-    sum_xy: list[F64] = []
-    sum_d: list[float] = []
-    count: list[int] = []
+    groups: list[NDArray[np.intp]] = []
+    n_groups = 0
     prev_xy, prev_group = np.zeros((0, 2)), np.zeros(0, dtype=np.intp)
     for xy, d in per_level:
         group = np.full(len(d), -1, dtype=np.intp)
         if len(d) and len(prev_xy):
             nearest, dist = _nearest(xy, prev_xy)
-            near = dist <= 0.25 * d + 1.0
-            group[near] = prev_group[nearest[near]]
+            near = np.flatnonzero(dist <= 0.25 * d + 1.0)
             # Two components of one level joined to one chain: the nearer keeps it.
-            taken: dict[int, int] = {}
-            for j in np.flatnonzero(near).tolist():
-                g = int(group[j])
-                if g in taken and dist[taken[g]] <= dist[j]:
-                    group[j] = -1
-                    continue
-                if g in taken:
-                    group[taken[g]] = -1
-                taken[g] = j
-        for i in range(len(d)):
-            if group[i] < 0:
-                group[i] = len(count)
-                sum_xy.append(np.zeros(2))
-                sum_d.append(0.0)
-                count.append(0)
-            g = int(group[i])
-            sum_xy[g] = sum_xy[g] + xy[i]
-            sum_d[g] += float(d[i])
-            count[g] += 1
+            near = near[np.lexsort((dist[near], prev_group[nearest[near]]))]
+            _, first = np.unique(prev_group[nearest[near]], return_index=True)
+            keep = near[first]
+            group[keep] = prev_group[nearest[keep]]
+        fresh = group < 0
+        group[fresh] = n_groups + np.arange(int(fresh.sum()))
+        n_groups += int(fresh.sum())
+        groups.append(group)
         prev_xy, prev_group = xy, group
-    if not count:
+    if not n_groups:
         return Blobs(np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64))
-    c = np.array(count, dtype=np.int64)
+    every = np.concatenate(groups)
+    xy_all = np.concatenate([xy for xy, _ in per_level])
+    d_all = np.concatenate([d for _, d in per_level])
+    c = np.bincount(every, minlength=n_groups)
     seen = c >= 2
-    centres = (np.array(sum_xy) / c[:, None])[seen]
-    diameters = (np.array(sum_d) / c)[seen]
-    return _one_per_place(Blobs(centres, diameters, c[seen]))
+    centres = np.column_stack(
+        [np.bincount(every, xy_all[:, i], minlength=n_groups) / np.maximum(c, 1) for i in (0, 1)]
+    )[seen]
+    diameters = (np.bincount(every, d_all, minlength=n_groups) / np.maximum(c, 1))[seen]
+    return _one_per_place(Blobs(centres, diameters, c[seen].astype(np.int64)))
 
 
 def _level_components(
@@ -159,32 +151,24 @@ def _one_per_place(blobs: Blobs) -> Blobs:
     """Blobs whose centres lie within each other's radius are one blob seen twice (a chain of
     levels broken by a level where it merged with a neighbour): keep the one seen at most
     levels."""
+    from scipy.spatial import cKDTree
+
     if len(blobs) < 2:
         return blobs
-    order = np.argsort(-blobs.levels, kind="stable")
-    kept: list[int] = []
-    taken = np.zeros(len(blobs), dtype=bool)
     xy, d = blobs.centres, blobs.diameters
-    cell = max(float(np.median(d)), 1.0)
-    buckets: dict[tuple[int, int], list[int]] = {}
-    for i in order:
-        if taken[i]:
-            continue
-        kx, ky = int(xy[i, 0] // cell), int(xy[i, 1] // cell)
-        reach = int(np.ceil(0.5 * d[i] / cell)) + 1
-        clash = False
-        for bx in range(kx - reach, kx + reach + 1):
-            for by in range(ky - reach, ky + reach + 1):
-                for j in buckets.get((bx, by), ()):
-                    if np.hypot(*(xy[i] - xy[j])) < 0.5 * max(d[i], d[j]):
-                        clash = True
-                        break
-                if clash:
-                    break
-            if clash:
-                break
-        taken[i] = True
-        if not clash:
-            kept.append(int(i))
-            buckets.setdefault((kx, ky), []).append(int(i))
-    return blobs.subset(np.array(sorted(kept), dtype=np.intp))
+    # Pairs closer than the larger one's radius: each blob's ball of its own radius finds the
+    # pairs where it is the larger.
+    balls = cKDTree(xy).query_ball_point(xy, r=0.5 * d)
+    clashes = [[j for j in ball if j != i] for i, ball in enumerate(balls)]
+    rank = np.empty(len(d), dtype=np.intp)
+    rank[np.argsort(-blobs.levels, kind="stable")] = np.arange(len(d))
+    others: dict[int, set[int]] = {}
+    for i, js in enumerate(clashes):
+        for j in js:
+            others.setdefault(i, set()).add(j)
+            others.setdefault(j, set()).add(i)
+    kept = np.ones(len(d), dtype=bool)
+    for i in sorted(others, key=lambda k: rank[k]):
+        if any(kept[j] and rank[j] < rank[i] for j in others[i]):
+            kept[i] = False
+    return blobs.subset(np.flatnonzero(kept))
