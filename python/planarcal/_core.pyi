@@ -26,6 +26,7 @@ __all__ = [
     "median_grey",
     "perspective_transform",
     "reading_order",
+    "refine_dot_centres",
     "reprojection_errors",
     "transform_points",
 ]
@@ -181,6 +182,9 @@ def frame_json(
 ) -> str: ...
 def median_grey(grey: ArrayLike, row_step: int = 16, col_step: int = 2) -> int: ...
 def reading_order(centroids: ArrayLike, heights: ArrayLike) -> NDArray[np.int64]: ...
+def refine_dot_centres(
+    ink_dark: ArrayLike, points: ArrayLike, diameters: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.uint8]]: ...
 
 @final
 class Tracks:

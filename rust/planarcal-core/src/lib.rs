@@ -20,6 +20,7 @@ pub mod contours;
 pub mod correspondences;
 pub mod degeneracy;
 pub mod dlt;
+pub mod dot_centres;
 pub mod error;
 pub mod estimate;
 pub mod image;

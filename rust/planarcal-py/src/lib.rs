@@ -4,6 +4,7 @@
 
 mod contours;
 mod convert;
+mod dot_centres;
 mod errors;
 mod estimate;
 mod mapper;
@@ -39,6 +40,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(contours::measure_contours, m)?)?;
     m.add_function(wrap_pyfunction!(contours::reading_order, m)?)?;
     m.add_function(wrap_pyfunction!(contours::median_grey, m)?)?;
+    m.add_function(wrap_pyfunction!(dot_centres::refine_dot_centres, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::estimate_homography, m)?)?;
     m.add_function(wrap_pyfunction!(estimate::find_homography, m)?)?;
     m.add_function(wrap_pyfunction!(robust::estimate_homography_robust, m)?)?;
