@@ -32,3 +32,14 @@ def paper_tables() -> dict[str, Any]:
         pytest.skip(f"the paper's tables are not here ({path}): ../shared is absent")
     data: dict[str, Any] = json.loads(path.read_text())
     return data
+
+
+def decode_png(png: bytes) -> Any:
+    """A PNG file's bytes decoded by OpenCV (BGR), checked to be a PNG that decodes."""
+    import cv2
+    import numpy as np
+
+    assert png.startswith(b"\x89PNG")
+    picture = cv2.imdecode(np.frombuffer(png, dtype=np.uint8), cv2.IMREAD_COLOR)
+    assert picture is not None
+    return np.asarray(picture)

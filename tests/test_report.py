@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import decode_png
 from planarcal import drawing, paper_data, report, synth
 from planarcal.calibration import Calibration
 from planarcal.detect import detect_board
@@ -83,13 +84,6 @@ def before(cal: Calibration) -> Calibration:
 def paper_cal() -> Calibration:
     """The paper's 28 points: no board, no image size (so no lens model)."""
     return Calibration(paper_data.WORLD_MM, paper_data.IMAGE_PX)
-
-
-def _decode(png: bytes) -> np.ndarray[Any, Any]:
-    assert png.startswith(b"\x89PNG")
-    picture = cv2.imdecode(np.frombuffer(png, dtype=np.uint8), cv2.IMREAD_COLOR)
-    assert picture is not None
-    return np.asarray(picture)
 
 
 def _plausible(picture: np.ndarray[Any, Any]) -> None:
@@ -216,18 +210,18 @@ def lens_png(cal: Calibration, scene: Any) -> bytes:
 
 
 def test_lens_figure_decodes(lens_png: bytes) -> None:
-    picture = _decode(lens_png)
+    picture = decode_png(lens_png)
     _plausible(picture)
     h, w = picture.shape[:2]
     assert w > h  # two panels side by side in each row
 
 
 def test_lens_figure_without_the_image(cal: Calibration) -> None:
-    _plausible(_decode(report.lens_figure(cal)))
+    _plausible(decode_png(report.lens_figure(cal)))
 
 
 def test_uncertainty_figure_decodes(cal: Calibration) -> None:
-    _plausible(_decode(report.uncertainty_figure(cal)))
+    _plausible(decode_png(report.uncertainty_figure(cal)))
 
 
 @pytest.mark.parametrize("which", ["lens_none", "paper_points"])
@@ -247,7 +241,7 @@ def test_every_figure_without_a_lens_model(
     )
     for p in written:
         if p.suffix == ".png":
-            _plausible(_decode(p.read_bytes()))
+            _plausible(decode_png(p.read_bytes()))
 
 
 def test_four_points_leave_no_room_for_uncertainty(tmp_path: Path) -> None:
@@ -269,7 +263,7 @@ def test_four_points_leave_no_room_for_uncertainty(tmp_path: Path) -> None:
     written = report.write_report(exact, tmp_path)
     for p in written:
         if p.suffix == ".png":
-            _plausible(_decode(p.read_bytes()))
+            _plausible(decode_png(p.read_bytes()))
 
 
 def test_unmappable_pixels_are_masked_not_fatal(cal: Calibration) -> None:
@@ -294,8 +288,8 @@ def test_unmappable_pixels_are_masked_not_fatal(cal: Calibration) -> None:
     corner = np.array([[0.0, 0.0]])
     with pytest.raises((IntrinsicsError, LensModelError, PointAtInfinityError)):
         folded.image_to_world(corner, return_std=True)
-    _plausible(_decode(report.uncertainty_figure(folded)))
-    _plausible(_decode(report.lens_figure(folded)))
+    _plausible(decode_png(report.uncertainty_figure(folded)))
+    _plausible(decode_png(report.lens_figure(folded)))
     out = report.summary_json(folded)
     json.dumps(out, allow_nan=False)
     assert out["lens_model"] == "intrinsics" and "before_after" in out

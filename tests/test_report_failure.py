@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import planarcal.detect
+from conftest import decode_png
 from planarcal import report, synth
 from planarcal.board import CircleGridBoard
 from planarcal.cli import main
@@ -59,13 +60,6 @@ def diagnostics(scene: Any) -> DetectionDiagnostics:
     )
 
 
-def _decode(png: bytes) -> np.ndarray[Any, Any]:
-    assert png.startswith(b"\x89PNG")
-    picture = cv2.imdecode(np.frombuffer(png, dtype=np.uint8), cv2.IMREAD_COLOR)
-    assert picture is not None
-    return np.asarray(picture)
-
-
 def _plausible(picture: np.ndarray[Any, Any]) -> None:
     h, w = picture.shape[:2]
     assert 500 <= h <= 1300 and w == 1600, picture.shape
@@ -82,8 +76,8 @@ def _pixels_of(picture: np.ndarray[Any, Any], bgr: tuple[int, int, int]) -> int:
 
 
 def test_the_figure_draws_blobs_and_candidates(scene: Any, diagnostics: Any) -> None:
-    drawn = _decode(report.detection_failure_figure(scene.image, diagnostics, MESSAGE))
-    bare = _decode(report.detection_failure_figure(scene.image, None, MESSAGE))
+    drawn = decode_png(report.detection_failure_figure(scene.image, diagnostics, MESSAGE))
+    bare = decode_png(report.detection_failure_figure(scene.image, None, MESSAGE))
     _plausible(drawn)
     _plausible(bare)
     # The second candidate's line is drawn in its colour; the image alone has none of it.
@@ -121,7 +115,7 @@ def test_a_grey_image_with_nothing_seen(diagnostics: Any) -> None:
     nothing = DetectionDiagnostics(
         board=diagnostics.board, image_size=(640, 480), blobs=(), candidates=()
     )
-    picture = _decode(report.detection_failure_figure(blank, nothing, MESSAGE))
+    picture = decode_png(report.detection_failure_figure(blank, nothing, MESSAGE))
     assert picture.shape[1] == 1600 and picture.std() > 10
     assert "No candidate grid" in report.detection_failure_text(nothing, MESSAGE)
 
