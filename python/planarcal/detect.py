@@ -10,20 +10,23 @@ for):
    (planarcal.grid_search), which is indifferent to dots of other sizes on the grid (an
    origin marker as wide as the pitch, fiducials) and to marks off it (printed numbers,
    arrows, the board's edge, texture). Where that finds nothing, OpenCV's findCirclesGrid
-   with its own defaults, then with its clustering flag, as long as the number of blobs in
-   view keeps them quick (they can run for minutes on thousands of blobs).
+   with its own defaults, as long as the blobs in view keep it quick (it can run for
+   minutes on thousands of them).
 3. Every candidate is refined and checked (planarcal.dot_centres): each centre from the dot's
    grey levels over a plane fitted to the paper around it, then corrected for perspective
    (the conic offset, with each dot's diameter measured in the image). A dot that cannot be
-   measured keeps its blob centre and is flagged (``refined``), instead of sinking the board.
-   A grid whose points stray from a homography by more than a third of the dot pitch, or
-   whose dots continue past an edge (a larger board), is not the board's and is refused.
+   measured keeps its blob centre and is flagged (``refined``), instead of sinking the board;
+   so is one that strays far from where the dots around it put it (a mark over it), which
+   takes their prediction. A grid with more such dots than a board may miss, or whose dots
+   continue past an edge (a larger board), is not the board's and is refused.
 
 The board's reading. The world frame (X along a row, Y down a column, as printed and seen
 from the front) maps onto the image without a mirror. An origin marker (the board's, or
 any corner dot clearly larger than its neighbours: recognised without being declared) is
-dot 0. Without one the orientation is ambiguous, and dot 0 is the corner nearest the image's
-top-left (pixel (0, 0)); the detection says so (``orientation``, ``orientation_rule``). A
+dot 0. A grid whose pattern has one unmirrored reading (an asymmetric grid with an odd number
+of rows) fixes it by itself. Otherwise the orientation is ambiguous, and dot 0 is the corner
+nearest the image's top-left (pixel (0, 0)); the detection says so (``orientation``,
+``orientation_rule``). A
 non-square board that can only be read turned by 90 degrees (its rows running down the
 image) is refused with the command line that reads it as given (``--cols`` and ``--rows``
 swapped), unless ``turned=True`` or a marker settles it.
@@ -333,7 +336,7 @@ def _finish(
     centres, refined, doubts = _checked_by_neighbours(
         measured.centres, measured.areas, measured.refined, enlarged, board, pitch
     )
-    reading, orientation, rule, warnings = _reading(centres, enlarged, board, turned, pitch)
+    reading, orientation, rule, warnings = _reading(centres, enlarged, board, turned)
     centres = centres[reading]
     areas = measured.areas[reading]
     refined = refined[reading]
@@ -534,7 +537,7 @@ def _unmirrored(points: F64, world: F64) -> bool:
 
 
 def _reading(
-    centres: F64, enlarged: NDArray[np.bool_], board: CircleGridBoard, turned: bool, pitch: float
+    centres: F64, enlarged: NDArray[np.bool_], board: CircleGridBoard, turned: bool
 ) -> tuple[NDArray[np.intp], Orientation, str, tuple[str, ...]]:
     """The one re-indexing of the found dots that is the board's, how it was chosen, and
     warnings."""
