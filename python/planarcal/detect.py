@@ -428,8 +428,12 @@ def _checked_by_neighbours(
             break
         trusted[k] = False
         why[k] = f"{gap[k]:.1f} px from where its neighbours put it"
-        predicted = _predict_from_neighbours(world, centres, world, board, known=trusted)
-        gap = np.hypot(*(centres - predicted).T)
+        # Only the dots around it change their prediction.
+        around = np.array([k, *neighbourhoods[k]], dtype=np.intp)
+        predicted[around] = _predict_from_neighbours(
+            world, centres, world[around], board, known=trusted
+        )
+        gap[around] = np.hypot(*(centres[around] - predicted[around]).T)
     if len(why) > allowed:
         raise _RefusedError(
             f"not the board's grid: {len(why)} or more dots stray from where their neighbours "
