@@ -62,10 +62,6 @@ class Placement:
     """(n,) blob index of each board dot; -1 where the dot is missing."""
     nodes: I64
     """(n, 2) lattice node of each board dot."""
-    lattice_shape: tuple[int, int]
-    """(width, height) of the whole lattice the board was placed on, in steps."""
-    extra_nodes: int
-    """Lattice nodes outside the placement (clutter on the lattice, or a larger board)."""
 
 
 def board_pattern(board: CircleGridBoard) -> I64:
@@ -292,8 +288,6 @@ def place_board(lattice: Lattice, board: CircleGridBoard) -> list[Placement]:
                         Placement(
                             blob=blob,
                             nodes=nodes,
-                            lattice_shape=(width, height),
-                            extra_nodes=len(lattice.nodes) - (len(at) - holes),
                         ),
                     )
                 )
