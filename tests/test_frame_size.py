@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import pickle
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -146,12 +147,7 @@ def test_locate_objects_refuses_an_image_of_another_size(
     with pytest.raises(FrameSizeError, match="1280 x 720"):
         locate_objects(path, cal_640)
     # The calibration's own size is located.
-    found = locate_objects(parts["640"].image, cal_640)
-    truth = parts["640"].object_centroids_mm
-    assert len(found) == 3
-    for o in found:
-        assert o.world_mm is not None
-        assert np.hypot(*(truth - np.array(o.world_mm)).T).min() < 0.1
+    _assert_located(locate_objects(parts["640"].image, cal_640), parts["640"], 0.1)
 
 
 def test_locate_command_refuses_an_image_of_another_size(
@@ -246,12 +242,7 @@ def test_for_frame_size_maps_the_same_scene_point_to_the_same_millimetres(
     assert np.allclose(std2, std, rtol=1e-9)
     assert np.allclose(cal_1280.world_to_image(mm), pixel_scaling(2.0, u), atol=1e-7)
     # On the rendered scene: the parts located in the 1280 x 960 frame are where they are.
-    found = locate_objects(parts["1280"].image, cal_1280)
-    truth = parts["1280"].object_centroids_mm
-    assert len(found) == 3
-    for o in found:
-        assert o.world_mm is not None
-        assert np.hypot(*(truth - np.array(o.world_mm)).T).min() < 0.05
+    _assert_located(locate_objects(parts["1280"].image, cal_1280), parts["1280"], 0.05)
     # Exact projections of points over the board: as accurate as at 640 x 480 ...
     world = rng.uniform([0.0, 0.0], [260.0, 180.0], (300, 2))
     at_1280 = cal_1280.image_to_world(LARGE.project(world, POSE))
@@ -318,3 +309,12 @@ def test_for_frame_size_refuses_what_is_not_a_rescaled_view(cal_640: Calibration
     for width, height in ((0, 480), (-640, 480), (640.0, 480), (True, 480)):
         with pytest.raises(ValueError, match="image_size"):
             cal_640.for_frame_size(width, height)  # type: ignore[arg-type]
+
+
+def _assert_located(found: Any, scene: Any, tolerance_mm: float) -> None:
+    """The scene's three parts, each within `tolerance_mm` of its true centroid."""
+    truth = scene.object_centroids_mm
+    assert len(found) == 3
+    for o in found:
+        assert o.world_mm is not None
+        assert np.hypot(*(truth - np.array(o.world_mm)).T).min() < tolerance_mm
