@@ -24,6 +24,7 @@ use std::f64::consts::PI;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
+use crate::smooth::reflect_101;
 use crate::threads::pool_allowed;
 use crate::Point;
 
@@ -688,17 +689,6 @@ fn gaussian_kernel() -> [f32; 9] {
     [
         side[0], side[1], side[2], side[3], mul as f32, side[3], side[2], side[1], side[0],
     ]
-}
-
-/// Index `i` (which may lie outside [0, n)) mirrored into [0, n) about the edge pixels, which
-/// are not repeated (BORDER_REFLECT_101); n >= 2.
-fn reflect_101(i: isize, n: usize) -> usize {
-    let n = n as isize;
-    let mut i = i;
-    while !(0..n).contains(&i) {
-        i = if i < 0 { -i } else { 2 * (n - 1) - i };
-    }
-    i as usize
 }
 
 /// cv2.GaussianBlur(input, (0, 0), 1.0) of a `width` x `height` float32 image into `out`, in

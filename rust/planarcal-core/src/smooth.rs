@@ -23,9 +23,9 @@ fn kernel() -> [f32; TAPS] {
     k.map(|v| (v / sum) as f32)
 }
 
-/// Index `i` (which may be up to RADIUS outside [0, n)) mirrored into the frame, the edge
-/// pixel not repeated; a single pixel is its own mirror.
-fn reflect_101(i: isize, n: usize) -> usize {
+/// Index `i` (which may lie outside [0, n)) mirrored into the frame, the edge pixel not
+/// repeated (OpenCV's BORDER_REFLECT_101); a single pixel is its own mirror.
+pub(crate) fn reflect_101(i: isize, n: usize) -> usize {
     let n = n as isize;
     if n == 1 {
         return 0;
