@@ -36,6 +36,8 @@ REAL = "/work/shared/data/real/boofcv-circle-regular/image{:05d}.jpg"
 # The reference: planarcal.dot_centres as it was in NumPy (one dot at a time).
 
 NEIGHBOUR_MARGIN_PX = 1.5
+MIN_INK_PLANE_PIXELS = 12
+INK_PLANE_CHI2 = 13.82
 
 
 class _UnmeasurableError(Exception):
@@ -100,7 +102,7 @@ def _refine_one(
         if inside.sum() < 4:
             raise _UnmeasurableError("too small to measure")
         background = _ring_plane(patch, xx - cx, yy - cy, ring)
-        weight = _ink_weights(patch, background, inside)
+        weight = _ink_weights(patch, background, xx - cx, yy - cy, inside)
         if weight is None:
             raise _UnmeasurableError("no contrast with its background")
         total = float(weight.sum())
@@ -116,7 +118,9 @@ def _refine_one(
     return (cx, cy), total
 
 
-def _ink_weights(patch: F64, background: F64, inside: NDArray[np.bool_]) -> F64 | None:
+def _ink_weights(
+    patch: F64, background: F64, dx: F64, dy: F64, inside: NDArray[np.bool_]
+) -> F64 | None:
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(background > 0, patch / background, 1.0)
     darkness = 1.0 - ratio
@@ -127,6 +131,12 @@ def _ink_weights(patch: F64, background: F64, inside: NDArray[np.bool_]) -> F64 
     cover = np.clip(darkness / core, 0.0, 1.0)
     smooth = cv2.GaussianBlur(cover.astype(np.float32), (0, 0), 1.0).astype(np.float64)
     solid = smooth > 0.8
+    ink = _ink_plane(patch, background, dx, dy, solid & inside, core)
+    if ink is not None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cover = np.nan_to_num(np.clip((background - patch) / (background - ink), 0.0, 1.0))
+        smooth = cv2.GaussianBlur(cover.astype(np.float32), (0, 0), 1.0).astype(np.float64)
+        solid = smooth > 0.8
     clear = smooth < 0.2
     band = ~(solid | clear)
     band = cv2.dilate(band.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -148,6 +158,38 @@ def _ring_plane(patch: F64, dx: F64, dy: F64, ring: NDArray[np.bool_]) -> F64:
         if new_keep.sum() < 6 or (new_keep == keep).all():
             break
         keep = new_keep
+    plane: F64 = coef[0] + coef[1] * dx + coef[2] * dy
+    return plane
+
+
+def _ink_plane(
+    patch: F64, background: F64, dx: F64, dy: F64, solid: NDArray[np.bool_], core: float
+) -> F64 | None:
+    """The plane through the solid pixels' grey levels, where its slope differs from the
+    paper's scaled by the ink (1 - core) beyond chance (chi-square, 2 dof, p = 0.001)."""
+    count = int(solid.sum())
+    if count < MIN_INK_PLANE_PIXELS:
+        return None
+    design = np.column_stack([np.ones(count), dx[solid], dy[solid]])
+    coef = np.asarray(np.linalg.lstsq(design, patch[solid], rcond=None)[0], np.float64)
+    paper = np.asarray(
+        np.linalg.lstsq(
+            np.column_stack([np.ones(dx.size), dx.ravel(), dy.ravel()]),
+            background.ravel(),
+            rcond=None,
+        )[0],
+        np.float64,
+    )
+    resid = patch[solid] - design @ coef
+    variance = float(resid @ resid) / (count - 3)
+    gap = coef[1:] - (1.0 - core) * paper[1:]
+    try:  # a singular covariance (no noise at all) makes any gap significant
+        slope_cov = np.linalg.inv(design.T @ design)[1:, 1:] * variance
+        chi2 = float(gap @ np.linalg.solve(slope_cov, gap))
+    except np.linalg.LinAlgError:
+        chi2 = np.inf
+    if not chi2 > INK_PLANE_CHI2:
+        return None
     plane: F64 = coef[0] + coef[1] * dx + coef[2] * dy
     return plane
 

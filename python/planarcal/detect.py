@@ -382,6 +382,8 @@ def _finish(
 # glare over it, a dot split in two) and takes their prediction instead; nearer dots are
 # judged against how well the board's dots agree on the whole (_checked_by_neighbours).
 NEIGHBOUR_DISAGREEMENT_PITCH = 0.15
+# ... and never within this many px: below it a dot may sit where a lens or the paper puts it.
+MIN_DISAGREEMENT_PX = 0.25
 # A dot with less ink than this fraction of its neighbours' is partly hidden.
 MIN_AREA_OF_NEIGHBOURS = 0.5
 
@@ -417,9 +419,11 @@ def _checked_by_neighbours(
     gap = np.hypot(*(centres - predicted).T)
     # Far beyond how well the dots agree with their neighbours on the whole (ten times the
     # median gap: real photographs' good dots stay within six, through a strong lens and at
-    # the board's edges), at most NEIGHBOUR_DISAGREEMENT_PITCH, and never within a pixel.
+    # the board's edges), at most NEIGHBOUR_DISAGREEMENT_PITCH, never within
+    # MIN_DISAGREEMENT_PX.
     typical = float(np.nanmedian(gap)) if np.isfinite(gap).any() else 0.0
-    limit = float(np.clip(10.0 * typical, 1.0, max(1.0, NEIGHBOUR_DISAGREEMENT_PITCH * pitch)))
+    floor = MIN_DISAGREEMENT_PX
+    limit = float(np.clip(10.0 * typical, floor, max(floor, NEIGHBOUR_DISAGREEMENT_PITCH * pitch)))
     allowed = max(2, max_holes(board))
     while len(why) <= allowed:
         excess = np.where(trusted & np.isfinite(gap), gap / limit, 0.0)

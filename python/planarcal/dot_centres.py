@@ -3,8 +3,11 @@
 Each dot's centre is the centroid of its darkness: (background - pixel) / (background -
 ink), clipped to [0, 1], over a disc around the dot, where the background is a plane fitted
 (robustly) to a ring of paper around it and the ink level is the dot's darkest quarter. Edge
-pixels count by how much ink they see, so the estimate is sub-pixel without thresholds. Three
-passes: each sizes the dot and re-centres the disc on it.
+pixels count by how much ink they see, so the estimate is sub-pixel without thresholds. On a
+photograph the ink's light need not be the paper's scaled (flare, the camera's black level,
+the ink's sheen); where a dot's solid pixels show it beyond their noise, the ink gets a plane
+of its own and the coverage is (paper - pixel) / (paper - ink). Three passes: each sizes the
+dot and re-centres the disc on it.
 
 The windows follow each dot's own size, not the grid's pitch, so an origin marker as wide as
 the pitch is measured like a small dot; pixels near the other dots (their measured size and

@@ -6,8 +6,9 @@
 //! ink's darkness and clipped to [0, 1], over a disc around the dot, where the background is a
 //! plane fitted (robustly) to a ring of paper around it and the ink's darkness is the median of
 //! the disc's darkest quarter. Edge pixels count by how much ink they see, so the estimate is
-//! sub-pixel without thresholds. Three passes: each sizes the dot and re-centres the disc on
-//! it.
+//! sub-pixel without thresholds. Where the dot's solid pixels show that the ink's light is not
+//! the paper's scaled (flare and sheen on a real photograph), the ink gets a plane of its own.
+//! Three passes: each sizes the dot and re-centres the disc on it.
 //!
 //! The windows follow each dot's own size, not the grid's pitch; pixels near the other dots
 //! (their radius * 1.1 + 1.5 px) are left out of both the disc and the ring, so dots that
@@ -21,7 +22,7 @@
 use std::cmp::Ordering;
 use std::f64::consts::PI;
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector2, Vector3};
 use rayon::prelude::*;
 
 use crate::smooth::reflect_101;
@@ -49,6 +50,10 @@ const MIN_CONTRAST: f64 = 0.05;
 /// On the smoothed coverage: above SOLID is ink, below CLEAR is paper, between is the edge.
 const SOLID: f64 = 0.8;
 const CLEAR: f64 = 0.2;
+/// The ink's own plane needs this many solid pixels (see [`ink_plane`]) ...
+const MIN_INK_PLANE_PIXELS: usize = 12;
+/// ... and a slope this far from the paper's scaled (chi-square, 2 dof, p = 0.001).
+const INK_PLANE_CHI2: f64 = 13.82;
 /// From this many dots on, the thread pool: a dot of 20 px costs some 50 us, more than waking
 /// the pool (measured on two cores: 2 dots, 33 us a dot against 83 us on one thread).
 const PARALLEL_MIN_DOTS: usize = 2;
@@ -217,7 +222,9 @@ struct Scratch {
     neighbours: Vec<[f64; 3]>,
     /// Per window pixel, row-major: RING / INSIDE flags.
     class: Vec<u8>,
-    /// Per window pixel: the grey level, then the darkness.
+    /// Per window pixel: the grey level.
+    grey: Vec<f64>,
+    /// Per window pixel: the darkness.
     darkness: Vec<f64>,
     /// The ring's pixels (grey level, dx, dy), their residuals from the plane and whether the
     /// next fit keeps them.
@@ -226,6 +233,8 @@ struct Scratch {
     keep: Vec<bool>,
     /// Values being ranked (percentile, medians), as rank keys.
     ranked: Vec<u64>,
+    /// Per window pixel: the coverage by the ink.
+    coverage: Vec<f64>,
     /// Coverage and its smoothing (f32, as OpenCV blurs it), and the blur's first pass.
     cover: Vec<f32>,
     smooth: Vec<f32>,
@@ -345,17 +354,17 @@ fn refine_one<T: Copy + Into<f64>>(
             return Err(DotStatus::TooSmall);
         }
         // The grey levels, then the ring's plane.
-        s.darkness.clear();
+        s.grey.clear();
         for y in y0..y1 {
             let row = &image.pixels[y * w + x0..y * w + x1];
-            s.darkness.extend(row.iter().map(|&v| v.into()));
+            s.grey.extend(row.iter().map(|&v| v.into()));
         }
-        let plane = ring_plane(win, [cx, cy], s);
-        darkness(win, [cx, cy], plane, &mut s.darkness);
+        let paper = ring_plane(win, [cx, cy], s);
+        darkness(win, [cx, cy], paper, &s.grey, &mut s.darkness);
         let Some(core) = ink_level(s) else {
             return Err(DotStatus::NoContrast);
         };
-        let (sum, sx, sy) = ink_weights(win, core, s);
+        let (sum, sx, sy) = ink_weights(win, [cx, cy], paper, core, s);
         total = sum;
         if !(total > 0.0) {
             return Err(DotStatus::NoInk);
@@ -467,7 +476,7 @@ impl Reach {
     }
 }
 
-/// The plane a + b dx + c dy fitted to the ring's grey levels (in `s.darkness`), ignoring dark
+/// The plane a + b dx + c dy fitted to the ring's grey levels (in `s.grey`), ignoring dark
 /// intruders (a neighbouring dot, the board's edge, a printed mark): pixels far below a fit
 /// (3 robust standard deviations) are dropped and the plane refitted, up to three fits.
 #[inline(always)]
@@ -477,7 +486,7 @@ fn ring_plane(win: Window, centre: Point, s: &mut Scratch) -> Vector3<f64> {
     let rows = s
         .class
         .chunks_exact(win.width)
-        .zip(s.darkness.chunks_exact(win.width));
+        .zip(s.grey.chunks_exact(win.width));
     for (row, (class, values)) in rows.enumerate() {
         let dy = (win.y0 + row) as f64 - cy;
         for (col, (&c, &v)) in class.iter().zip(values).enumerate() {
@@ -571,25 +580,35 @@ fn least_squares_plane(ring: &[[f64; 3]], keep: &[bool]) -> Vector3<f64> {
     }
 }
 
-/// The grey levels in `values` become darkness: 1 - pixel / background where the background
+/// Each pixel's darkness from its grey level: 1 - pixel / background where the background
 /// plane is positive, else 0.
 #[inline(always)]
-fn darkness(win: Window, centre: Point, plane: Vector3<f64>, values: &mut [f64]) {
-    let [cx, cy] = centre;
-    for (row, line) in values.chunks_exact_mut(win.width).enumerate() {
-        // plane[0] + plane[1] dx + plane[2] dy, in that order.
-        let across = plane[2] * ((win.y0 + row) as f64 - cy);
-        for (col, v) in line.iter_mut().enumerate() {
-            let dx = (win.x0 + col) as f64 - cx;
-            let background = plane[0] + plane[1] * dx + across;
-            let ratio = if background > 0.0 {
-                *v / background
-            } else {
-                1.0
-            };
-            *v = 1.0 - ratio;
+fn darkness(win: Window, centre: Point, plane: Vector3<f64>, grey: &[f64], out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(window_points(win, centre).zip(grey).map(|((dx, dy), &v)| {
+        let background = at(plane, dx, dy);
+        1.0 - if background > 0.0 {
+            v / background
+        } else {
+            1.0
         }
-    }
+    }));
+}
+
+/// A plane a + b dx + c dy at (dx, dy), summed in that order.
+#[inline(always)]
+fn at(plane: Vector3<f64>, dx: f64, dy: f64) -> f64 {
+    plane[0] + plane[1] * dx + plane[2] * dy
+}
+
+/// Each window pixel's (dx, dy) from the centre, row-major.
+#[inline(always)]
+fn window_points(win: Window, centre: Point) -> impl Iterator<Item = (f64, f64)> {
+    let [cx, cy] = centre;
+    (0..win.height).flat_map(move |row| {
+        let dy = (win.y0 + row) as f64 - cy;
+        (0..win.width).map(move |col| ((win.x0 + col) as f64 - cx, dy))
+    })
 }
 
 /// The ink's darkness: the median of the disc's pixels at or above their 75th percentile;
@@ -621,21 +640,41 @@ fn ink_level(s: &mut Scratch) -> Option<f64> {
 /// smoothed copy of the coverage (sigma 1 px), where noise cannot flip them; the band
 /// (smoothed coverage 0.2 to 0.8, widened by a pixel) keeps each pixel's measured, linear
 /// coverage.
+///
+/// The coverage is first the darkness over the ink's (`core`), which takes the ink to be the
+/// paper's light scaled, as a rendering has it. On a photograph it need not be (flare, the
+/// camera's black level, the ink's sheen add light of their own), and then a light gradient
+/// pulls the centre; where the solid pixels show it ([`ink_plane`]), the coverage is
+/// (paper - pixel) / (paper - ink) between the paper's plane and the ink's own.
 #[inline(always)]
-fn ink_weights(win: Window, core: f64, s: &mut Scratch) -> (f64, f64, f64) {
-    s.cover.clear();
-    s.cover.extend(
-        s.darkness
-            .iter()
-            .map(|&d| (d / core).clamp(0.0, 1.0) as f32),
-    );
-    gaussian_blur_sigma1(
-        &s.cover,
-        win.width,
-        win.height,
-        &mut s.smooth,
-        &mut s.across,
-    );
+fn ink_weights(
+    win: Window,
+    centre: Point,
+    paper: Vector3<f64>,
+    core: f64,
+    s: &mut Scratch,
+) -> (f64, f64, f64) {
+    s.coverage.clear();
+    s.coverage
+        .extend(s.darkness.iter().map(|&d| (d / core).clamp(0.0, 1.0)));
+    smooth_coverage(win, s);
+    if let Some(ink) = ink_plane(win, centre, paper, core, s) {
+        s.coverage.clear();
+        s.coverage.extend(
+            window_points(win, centre)
+                .zip(&s.grey)
+                .map(|((dx, dy), &v)| {
+                    let background = at(paper, dx, dy);
+                    let c = (background - v) / (background - at(ink, dx, dy));
+                    if c.is_nan() {
+                        0.0
+                    } else {
+                        c.clamp(0.0, 1.0)
+                    }
+                }),
+        );
+        smooth_coverage(win, s);
+    }
     s.band.clear();
     s.band.extend(s.smooth.iter().map(|&v| {
         // Neither solid nor clear (NaN included, as in NumPy).
@@ -653,14 +692,14 @@ fn ink_weights(win: Window, core: f64, s: &mut Scratch) -> (f64, f64, f64) {
         let pixels = s.class[span.clone()]
             .iter()
             .zip(&s.wide[span.clone()])
-            .zip(&s.darkness[span.clone()])
+            .zip(&s.coverage[span.clone()])
             .zip(&s.smooth[span]);
-        for (col, (((&c, &wide), &d), &smooth)) in pixels.enumerate() {
+        for (col, (((&c, &wide), &coverage), &smooth)) in pixels.enumerate() {
             if c != INSIDE {
                 continue;
             }
             let weight = if wide {
-                (d / core).clamp(0.0, 1.0)
+                coverage
             } else if smooth as f64 > SOLID {
                 1.0
             } else {
@@ -674,6 +713,67 @@ fn ink_weights(win: Window, core: f64, s: &mut Scratch) -> (f64, f64, f64) {
         sy += line_total * y;
     }
     (total, sx, sy)
+}
+
+/// The plane through the grey levels of the disc's solid pixels (smoothed coverage above
+/// SOLID), when the data call for it: at least [`MIN_INK_PLANE_PIXELS`] of them, and a slope
+/// that differs from what the paper's light scaled by the ink gives, (1 - core) times the
+/// paper's slope, beyond the fit's own noise ([`INK_PLANE_CHI2`]). Otherwise None: a small
+/// dot's few solid pixels, or a rendering whose ink is the paper's light scaled, keep the
+/// ratio, which is exact there and steadier.
+fn ink_plane(
+    win: Window,
+    centre: Point,
+    paper: Vector3<f64>,
+    core: f64,
+    s: &mut Scratch,
+) -> Option<Vector3<f64>> {
+    s.ring.clear();
+    let pixels = window_points(win, centre)
+        .zip(&s.grey)
+        .zip(s.class.iter().zip(&s.smooth));
+    for (((dx, dy), &v), (&c, &smooth)) in pixels {
+        if c == INSIDE && smooth as f64 > SOLID {
+            s.ring.push([v, dx, dy]);
+        }
+    }
+    let count = s.ring.len();
+    if count < MIN_INK_PLANE_PIXELS {
+        return None;
+    }
+    s.keep.clear();
+    s.keep.resize(count, true);
+    let ink = least_squares_plane(&s.ring, &s.keep);
+    let mut normal = Matrix3::zeros();
+    let mut squares = 0.0;
+    for &[v, dx, dy] in &s.ring {
+        let a = Vector3::new(1.0, dx, dy);
+        normal += a * a.transpose();
+        squares += (v - a.dot(&ink)).powi(2);
+    }
+    let variance = squares / (count - 3) as f64;
+    let gap = Vector2::new(ink[1], ink[2]) - (1.0 - core) * Vector2::new(paper[1], paper[2]);
+    // A singular covariance (no noise at all) makes any gap significant.
+    let chi2 = normal
+        .try_inverse()
+        .map(|inv| inv.fixed_view::<2, 2>(1, 1) * variance)
+        .and_then(|cov| cov.try_inverse())
+        .map_or(f64::INFINITY, |info| gap.dot(&(info * gap)));
+    (chi2 > INK_PLANE_CHI2).then_some(ink)
+}
+
+/// The coverage in f32, blurred into `s.smooth`.
+#[inline(always)]
+fn smooth_coverage(win: Window, s: &mut Scratch) {
+    s.cover.clear();
+    s.cover.extend(s.coverage.iter().map(|&c| c as f32));
+    gaussian_blur_sigma1(
+        &s.cover,
+        win.width,
+        win.height,
+        &mut s.smooth,
+        &mut s.across,
+    );
 }
 
 /// OpenCV's Gaussian kernel for sigma 1 px in float32 (cv2.getGaussianKernel(9, 1.0,
@@ -905,6 +1005,29 @@ mod tests {
                 dot.area
             );
         }
+    }
+
+    #[test]
+    fn light_of_its_own_on_the_ink_does_not_pull_a_dot() {
+        // A photograph's grey level: light (a gradient of 2 % a pixel) times the reflectance,
+        // plus flare that does not scale with it, so the ink is not the paper's light scaled.
+        let (w, h) = (80, 70);
+        let (c, r) = ([40.3, 33.7], 10.0);
+        let flat = render(w, h, &[(c, r)]);
+        let px: Vec<f32> = flat
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let cover = (PAPER - v as f64) / (PAPER - INK);
+                let light = 1.0 + 0.02 * ((i % w) as f64 - c[0]);
+                (light * (20.0 * cover + 200.0 * (1.0 - cover)) + 40.0) as f32
+            })
+            .collect();
+        let start = [c[0].round() + 0.4, c[1].round() - 0.4];
+        let dot = refine_dot_centres(image(&px, w, h), &[start], &[2.0 * r]).unwrap()[0];
+        assert_eq!(dot.status, DotStatus::Refined);
+        let err = (dot.centre[0] - c[0]).hypot(dot.centre[1] - c[1]);
+        assert!(err < 0.01, "centre off by {err} px");
     }
 
     #[test]
