@@ -38,7 +38,7 @@ def outcome(task: Task) -> Any:
     """The answer of a task: its value, or ("raised", class name, cv2.error?, message)."""
     try:
         return task()
-    except pc.HomographyError as e:
+    except pc.Error as e:
         return ("raised", type(e).__name__, isinstance(e, cv2.error), str(e))
 
 
@@ -100,7 +100,7 @@ def problems(count: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
         out.append((line, out[3][0][:10]))  # collinear: DegenerateError
         nan_dst = out[4][1].copy()
         nan_dst[17, 1] = np.nan
-        out.append((out[4][0], nan_dst))  # HomographyError naming destination point 17
+        out.append((out[4][0], nan_dst))  # ArgumentError naming destination point 17
     return out
 
 

@@ -11,21 +11,19 @@ Underneath, a Rust core (homography solvers, refinement, batch transforms) with 
 
 * the native API: ``estimate_homography``, ``estimate_homography_robust`` (outliers),
   ``transform_points``, ``reprojection_errors``,
-  ``reprojection_stats``, raising ``HomographyError`` / ``DegenerateError`` /
-  ``PointAtInfinityError`` (all ``ValueError``) with messages that name the problem;
+  ``reprojection_stats``, raising ``ArgumentError`` (bad input) or ``HomographyError`` /
+  ``DegenerateError`` / ``PointAtInfinityError`` (no homography), all ``ValueError``, with
+  messages and attributes (``index``, ``point_set``) that name the problem;
 * drop-ins for OpenCV: ``findHomography`` and ``perspectiveTransform`` with cv2's signatures,
   shapes, dtypes and method constants, computed in float64.
+
+Every exception planarcal raises derives from ``planarcal.Error`` (see ``planarcal.errors``).
 """
 
 import os as _os
 
 from planarcal import _core
-from planarcal._core import (
-    DegenerateError,
-    HomographyError,
-    PointAtInfinityError,
-    __version__,
-)
+from planarcal._core import __version__
 from planarcal.board import CircleGridBoard
 from planarcal.calibration import Calibration, CalibrationSummary, LensCandidate, LensModel
 from planarcal.capture import Camera
@@ -45,14 +43,23 @@ from planarcal.cv import (
 )
 from planarcal.detect import BoardDetection, detect_board
 from planarcal.errors import (
+    ArgumentError,
     BoardError,
     BoardNotFoundError,
     CalibrationFileError,
     CameraError,
+    DegenerateError,
+    Error,
     FrameSizeError,
+    HomographyError,
     ImageError,
     IntrinsicsError,
     LensModelError,
+    OpenCVCompatibleArgumentError,
+    OpenCVCompatibleError,
+    OpenCVCompatiblePointAtInfinityError,
+    OutputError,
+    PointAtInfinityError,
 )
 from planarcal.homography import (
     SOLVERS,
@@ -93,6 +100,7 @@ __all__ = [
     "USAC_MAGSAC",
     "USAC_PARALLEL",
     "USAC_PROSAC",
+    "ArgumentError",
     "BoardDetection",
     "BoardError",
     "BoardNotFoundError",
@@ -105,6 +113,7 @@ __all__ = [
     "CircleGridBoard",
     "DegenerateError",
     "DetectedObject",
+    "Error",
     "FrameResult",
     "FrameSizeError",
     "HomographyError",
@@ -113,6 +122,10 @@ __all__ = [
     "LensCandidate",
     "LensModel",
     "LensModelError",
+    "OpenCVCompatibleArgumentError",
+    "OpenCVCompatibleError",
+    "OpenCVCompatiblePointAtInfinityError",
+    "OutputError",
     "PointAtInfinityError",
     "ReprojectionStats",
     "RobustMethod",

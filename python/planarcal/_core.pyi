@@ -6,12 +6,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "DegenerateError",
     "FittedPlane",
-    "HomographyError",
-    "LensModelError",
     "PlaneMapper",
-    "PointAtInfinityError",
     "Tracks",
     "__version__",
     "_after_fork_in_child",
@@ -32,10 +28,7 @@ __all__ = [
 ]
 __version__: str
 
-class HomographyError(ValueError): ...
-class DegenerateError(HomographyError): ...
-class PointAtInfinityError(HomographyError): ...
-class LensModelError(ValueError): ...
+# The exceptions the bindings raise are planarcal.errors' classes (pyo3::import_exception!).
 
 @final
 class FittedPlane:

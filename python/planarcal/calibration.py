@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 from planarcal import _core
 from planarcal.board import CircleGridBoard
 from planarcal.errors import (
+    ArgumentError,
     BoardError,
     CalibrationFileError,
     FrameSizeError,
@@ -188,12 +189,12 @@ class Calibration:
         world = _points(world_points, "world_points")
         image = _points(image_points, "image_points")
         if len(world) != len(image):
-            raise HomographyError(
+            raise ArgumentError(
                 f"world_points and image_points must match one to one, got {len(world)} "
                 f"and {len(image)}"
             )
         if solver not in SOLVERS:
-            raise HomographyError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
+            raise ArgumentError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if lens not in ("auto", *LENS_MODELS):
             raise LensModelError(
                 f"lens must be 'auto' or one of {', '.join(LENS_MODELS)}, got {lens!r}"
@@ -504,7 +505,7 @@ class Calibration:
         single = arr.ndim == 1
         if single:
             if arr.shape != (2,):
-                raise HomographyError(f"a point must have 2 coordinates, got shape {arr.shape}")
+                raise ArgumentError(f"a point must have 2 coordinates, got shape {arr.shape}")
             arr = arr.reshape(1, 2)
         arr = _points(arr, "points_px")
         h = (
@@ -513,7 +514,7 @@ class Calibration:
             else np.asarray(height, dtype=np.float64)
         )
         if h.shape != (len(arr),) or not np.isfinite(h).all():
-            raise ValueError(
+            raise ArgumentError(
                 f"height must be a finite number or one per point ({len(arr)}), got shape "
                 f"{np.shape(height)}"
             )
@@ -558,7 +559,7 @@ class Calibration:
         arr = np.asarray(points_mm, dtype=np.float64)
         single = arr.ndim == 1
         if single and arr.shape != (2,):
-            raise HomographyError(f"a point must have 2 coordinates, got shape {arr.shape}")
+            raise ArgumentError(f"a point must have 2 coordinates, got shape {arr.shape}")
         ideal = transform_points(self._h, arr.reshape(-1, 2))
         out = self._distort(ideal)
         return out[0] if single else out
@@ -833,7 +834,7 @@ def _points(value: ArrayLike, name: str) -> F64:
     if arr.ndim == 3 and 1 in arr.shape[:2] and arr.shape[2] == 2:
         arr = arr.reshape(-1, 2)
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise HomographyError(f"{name} must have shape (N, 2), got {arr.shape}")
+        raise ArgumentError(f"{name} must have shape (N, 2), got {arr.shape}")
     return np.ascontiguousarray(arr)
 
 
@@ -843,10 +844,10 @@ def _image_size(size: Any) -> tuple[int, int] | None:
     try:
         w, h = size
     except (TypeError, ValueError):
-        raise ValueError(f"image_size must be (width, height), got {size!r}") from None
+        raise ArgumentError(f"image_size must be (width, height), got {size!r}") from None
     for v in (w, h):
         if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
-            raise ValueError(f"image_size must be two positive whole numbers, got {size!r}")
+            raise ArgumentError(f"image_size must be two positive whole numbers, got {size!r}")
     return int(w), int(h)
 
 
@@ -854,7 +855,7 @@ def _given_size(size: Any) -> tuple[int, int]:
     """A (width, height) that must be there: _image_size without None."""
     checked = _image_size(size)
     if checked is None:
-        raise ValueError("image_size must be (width, height), got None")
+        raise ArgumentError("image_size must be (width, height), got None")
     return checked
 
 
@@ -1187,7 +1188,7 @@ def _fit_from_dict(
         elif lens != "none":
             raise CalibrationFileError(f"{source}: unknown lens model {lens!r}")
         plane = _plane_at(h, world, image, size, str(lens), params, intrinsics)
-    except (IntrinsicsError, LensModelError, HomographyError) as e:
+    except (ArgumentError, IntrinsicsError, LensModelError, HomographyError) as e:
         raise CalibrationFileError(f"{source}: {e}") from None
     except (KeyError, TypeError, ValueError) as e:
         raise CalibrationFileError(

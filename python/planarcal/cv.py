@@ -3,7 +3,9 @@
 Same signatures, shapes, dtypes and return conventions as ``cv2``: H is float64 3 x 3 with
 H[2, 2] = 1, the mask uint8 N x 1, ``None`` where OpenCV returns None for a failure. Where
 OpenCV raises ``cv2.error``, these raise an error that is both a ``cv2.error`` (so existing
-``except cv2.error`` code still catches it) and a ``planarcal.HomographyError`` (a ValueError).
+``except cv2.error`` code still catches it) and a ``planarcal.Error``: an ``ArgumentError`` for
+a bad argument (shape, dtype, NaN, option), a ``HomographyError`` for data that give no
+homography (both ValueErrors). The classes are defined in ``planarcal.errors``.
 
 Computed in float64 end to end (OpenCV rounds to float32 inside findHomography). Deliberate
 differences, all where OpenCV returns a wrong answer silently: NaN or infinite input raises
@@ -13,14 +15,21 @@ arbitrary matrix; a point that maps to infinity raises instead of becoming (0, 0
 
 from __future__ import annotations
 
-import threading
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planarcal import _core
-from planarcal._core import HomographyError, PointAtInfinityError
+from planarcal.errors import (
+    ArgumentError,
+    Error,
+    HomographyError,
+    OpenCVCompatibleArgumentError,
+    OpenCVCompatibleError,
+    OpenCVCompatiblePointAtInfinityError,
+    PointAtInfinityError,
+)
 from planarcal.robust import check_robust_options
 
 # OpenCV's method constants (cv2.LMEDS, ...), with its integer values.
@@ -49,44 +58,35 @@ ROBUST_METHODS = {
 }
 
 
-_compat_lock = threading.Lock()
-_compat: dict[str, type[Exception]] = {}
+__all__ = [
+    "LMEDS",
+    "RANSAC",
+    "RHO",
+    "USAC_ACCURATE",
+    "USAC_DEFAULT",
+    "USAC_FAST",
+    "USAC_FM_8PTS",
+    "USAC_MAGSAC",
+    "USAC_PARALLEL",
+    "USAC_PROSAC",
+    "OpenCVCompatibleArgumentError",
+    "OpenCVCompatibleError",
+    "OpenCVCompatiblePointAtInfinityError",
+    "findHomography",
+    "perspectiveTransform",
+]
 
 
-def _compat_classes() -> dict[str, type[Exception]]:
-    """The errors that are both planarcal's and a cv2.error, made once (thread-safely) on the
-    first failure, so importing planarcal does not import cv2. They live in this module under
-    their own names (see __getattr__), so they pickle to and from worker processes."""
-    with _compat_lock:
-        if not _compat:
-            import cv2
-
-            class OpenCVCompatibleError(HomographyError, cv2.error):
-                """A HomographyError that is also a cv2.error, for code written for OpenCV."""
-
-            class OpenCVCompatiblePointAtInfinityError(PointAtInfinityError, OpenCVCompatibleError):
-                """A PointAtInfinityError that is also a cv2.error."""
-
-            for cls in (OpenCVCompatibleError, OpenCVCompatiblePointAtInfinityError):
-                # Where pickle looks them up: planarcal.cv.<name>, served by __getattr__.
-                cls.__module__ = __name__
-                cls.__qualname__ = cls.__name__
-                _compat[cls.__name__] = cls
-    return _compat
-
-
-def __getattr__(name: str) -> type[Exception]:
-    """PEP 562: the OpenCV-compatible error classes, created on first access."""
-    if name in ("OpenCVCompatibleError", "OpenCVCompatiblePointAtInfinityError"):
-        return _compat_classes()[name]
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def _as_cv_error(error: HomographyError) -> Exception:
-    classes = _compat_classes()
-    if isinstance(error, PointAtInfinityError):
-        return classes["OpenCVCompatiblePointAtInfinityError"](*error.args)
-    return classes["OpenCVCompatibleError"](*error.args)
+def _as_cv_error(error: ArgumentError | HomographyError) -> Error:
+    """The same error (message and attributes) as one that is also a cv2.error."""
+    cls: type[ArgumentError | HomographyError]
+    if isinstance(error, ArgumentError):
+        cls = OpenCVCompatibleArgumentError
+    elif isinstance(error, PointAtInfinityError):
+        cls = OpenCVCompatiblePointAtInfinityError
+    else:
+        cls = OpenCVCompatibleError
+    return cls(str(error), error.index, error.point_set)
 
 
 def findHomography(
@@ -122,11 +122,11 @@ def findHomography(
                 srcPoints, dstPoints, method, ransacReprojThreshold, maxIters, confidence
             )
         else:
-            raise HomographyError(
+            raise ArgumentError(
                 f"unknown estimation method {method!r}; expected 0 or one of OpenCV's robust "
                 f"flags ({', '.join(f'{n} = {v}' for v, n in ROBUST_METHODS.items())})"
             )
-    except HomographyError as e:
+    except (ArgumentError, HomographyError) as e:
         raise _as_cv_error(e) from None
     return H, _fill_output(mask, out_mask)
 
@@ -156,7 +156,7 @@ def perspectiveTransform(
     """
     try:
         out = _core.perspective_transform(src, m)
-    except HomographyError as e:
+    except (ArgumentError, HomographyError) as e:
         raise _as_cv_error(e) from None
     if dst is None or out is None:
         return out

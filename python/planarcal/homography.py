@@ -38,9 +38,12 @@ def estimate_homography(
     transfer error in the destination by Levenberg-Marquardt: the maximum-likelihood
     estimate for Gaussian noise in ``dst``.
 
-    Raises ``HomographyError`` (a ``ValueError``) for malformed input (shapes, fewer than 4
-    points, NaN or infinity) and its subclass ``DegenerateError`` when the points do not
-    determine a homography (collinear, too few distinct points, ...).
+    Raises ``ArgumentError`` (a ``ValueError``) for malformed input: shapes, dtypes, sets of
+    different lengths, an unknown solver, a NaN or infinite coordinate (its ``point_set``
+    ``"src"`` or ``"dst"`` and ``index`` name it). Raises ``HomographyError`` (a
+    ``ValueError``) when valid points give no homography: fewer than 4, or its subclass
+    ``DegenerateError`` when their geometry does not determine one (collinear, too few
+    distinct points, ...).
     """
     return _core.estimate_homography(src, dst, solver, refine)
 
@@ -55,7 +58,8 @@ def transform_points(
     """Map points through H (or H^-1 with ``inverse=True``); returns (N, 2) float64.
 
     A point that maps to infinity or behind the horizon (w <= 0 under the oriented H) raises
-    ``PointAtInfinityError`` naming it; with ``invalid="nan"`` it becomes a NaN row instead.
+    ``PointAtInfinityError`` naming it (its ``index`` is the first such point; a NaN or
+    infinite input point counts as one); with ``invalid="nan"`` it becomes a NaN row instead.
     H is taken as oriented, as ``estimate_homography`` returns it. A matrix scaled by OpenCV's
     H[2,2] = 1 convention is oriented too unless the source origin lies beyond the horizon;
     then every point reports as behind it and the message says so (pass -H). For matrices of

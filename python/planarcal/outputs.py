@@ -55,6 +55,8 @@ import time
 from types import TracebackType
 from typing import TypeVar
 
+from planarcal.errors import OutputError
+
 __all__ = [
     "FileOutput",
     "Output",
@@ -65,12 +67,6 @@ __all__ = [
     "UdpOutput",
     "open_output",
 ]
-
-
-class OutputError(ValueError):
-    """An output that cannot be used as given: a malformed ``-o`` spec (no port, a port out
-    of range, an unknown scheme), a sink parameter out of range, or a line that would break
-    the one-JSON-document-per-line framing."""
 
 
 _SPEC_HELP = "expected '-' (stdout), tcp://HOST:PORT, udp://HOST:PORT or a file path"

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planarcal import _core
-from planarcal._core import HomographyError
+from planarcal.errors import ArgumentError
 
 RobustMethod = Literal["msac", "lmeds"]
 """``"msac"``: thresholded (truncated-quadratic) scoring; ``"lmeds"``: least median."""
@@ -91,45 +91,45 @@ def _result(raw: tuple[Any, ...]) -> RobustResult:
 
 
 def _integer(value: object, name: str) -> int:
-    """An integer argument (Python or NumPy), else a HomographyError naming it."""
+    """An integer argument (Python or NumPy), else an ArgumentError naming it."""
     if isinstance(value, bool):
-        raise HomographyError(f"{name} must be an integer, got {value!r}")
+        raise ArgumentError(f"{name} must be an integer, got {value!r}")
     try:
         return operator.index(value)  # type: ignore[arg-type]
     except TypeError:
-        raise HomographyError(f"{name} must be an integer, got {value!r}") from None
+        raise ArgumentError(f"{name} must be an integer, got {value!r}") from None
 
 
 def _real(value: object, name: str) -> float:
-    """A real-number argument, else a HomographyError naming it."""
+    """A real-number argument, else an ArgumentError naming it."""
     if isinstance(value, (bool, str, bytes)):
-        raise HomographyError(f"{name} must be a number, got {value!r}")
+        raise ArgumentError(f"{name} must be a number, got {value!r}")
     try:
         return float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise HomographyError(f"{name} must be a number, got {value!r}") from None
+        raise ArgumentError(f"{name} must be a number, got {value!r}") from None
 
 
 def check_robust_options(
     threshold: object, confidence: object, max_iters: object, seed: object, method: object
 ) -> tuple[float, float, int, int, str]:
-    """The options as the core takes them, or a HomographyError naming the bad one."""
+    """The options as the core takes them, or an ArgumentError naming the bad one."""
     if method not in ("msac", "lmeds"):
-        raise HomographyError(f'method must be "msac" or "lmeds", got {method!r}')
+        raise ArgumentError(f'method must be "msac" or "lmeds", got {method!r}')
     t = _real(threshold, "threshold")
     if method == "msac" and not (np.isfinite(t) and t > 0):
-        raise HomographyError(
+        raise ArgumentError(
             f"threshold must be a positive, finite distance (destination units), got {t!r}"
         )
     c = _real(confidence, "confidence")
     if not 0 < c < 1:
-        raise HomographyError(f"confidence must be strictly between 0 and 1, got {c!r}")
+        raise ArgumentError(f"confidence must be strictly between 0 and 1, got {c!r}")
     k = _integer(max_iters, "max_iters")
     if k <= 0:
-        raise HomographyError(f"max_iters must be at least 1, got {k}")
+        raise ArgumentError(f"max_iters must be at least 1, got {k}")
     s = _integer(seed, "seed")
     if not 0 <= s < 2**64:
-        raise HomographyError(f"seed must be an integer in [0, 2**64), got {s}")
+        raise ArgumentError(f"seed must be an integer in [0, 2**64), got {s}")
     return t, c, min(k, 2**62), s, str(method)
 
 
@@ -154,9 +154,10 @@ def estimate_homography_robust(
     median squared residual and ignores ``threshold``.
 
     A problem in which no model has more support than chance returns a result with
-    ``H=None`` and ``stop_reason="no_consensus"``. Bad input raises ``HomographyError`` (a
-    ``ValueError``) naming it: shapes, fewer than 4 points, NaN, threshold <= 0, confidence
-    outside (0, 1), max_iters < 1.
+    ``H=None`` and ``stop_reason="no_consensus"``. Bad input raises ``ArgumentError`` (a
+    ``ValueError``) naming it: shapes, NaN (``index`` and ``point_set`` name the point),
+    threshold <= 0, confidence outside (0, 1), max_iters < 1; fewer than 4 points raise
+    ``HomographyError``.
     """
     t, c, k, s, m = check_robust_options(threshold, confidence, max_iters, seed, method)
     return _result(_core.estimate_homography_robust(src, dst, t, c, k, s, scores, m))
@@ -174,7 +175,8 @@ def estimate_homography_robust_batch(
 
     The problems run in parallel on all cores with the GIL released, each with the given
     options and ``seed``; result ``i`` is identical to ``estimate_homography_robust`` on
-    problem ``i``. A problem with bad input raises ``HomographyError`` naming its index.
+    problem ``i``. A problem that fails raises what ``estimate_homography_robust`` would, its
+    message naming the problem's index.
     """
     t, c, k, s, m = check_robust_options(threshold, confidence, max_iters, seed, method)
     pairs: Sequence[tuple[ArrayLike, ArrayLike]] = list(problems)

@@ -128,6 +128,36 @@ pub enum HomographyError {
 }
 
 impl HomographyError {
+    /// True when an argument is malformed (point sets of different lengths, a non-finite
+    /// coordinate or matrix entry, scores of the wrong length, an option out of its range),
+    /// as opposed to well-formed data that give no homography.
+    pub fn is_invalid_argument(&self) -> bool {
+        matches!(
+            self,
+            HomographyError::LengthMismatch { .. }
+                | HomographyError::NonFinitePoint { .. }
+                | HomographyError::ScoresLength { .. }
+                | HomographyError::InvalidParameter { .. }
+                | HomographyError::NonFiniteMatrix { .. }
+        )
+    }
+
+    /// The point set and the index of the point the error names, where it names them (so
+    /// the bindings can hand them on as attributes rather than only in the message).
+    pub fn point(&self) -> (Option<PointSet>, Option<usize>) {
+        match *self {
+            HomographyError::NonFinitePoint { set, index, .. } => (Some(set), Some(index)),
+            HomographyError::AllButOneCollinear { set, outlier, .. } => (Some(set), Some(outlier)),
+            HomographyError::MixedOrientation { index, .. } => {
+                (Some(PointSet::Source), Some(index))
+            }
+            HomographyError::TooFewDistinct { set, .. }
+            | HomographyError::SpreadOutOfRange { set, .. }
+            | HomographyError::Collinear { set, .. } => (Some(set), None),
+            _ => (None, None),
+        }
+    }
+
     /// True when the input is well-formed but its geometry does not determine a homography.
     pub fn is_degenerate(&self) -> bool {
         matches!(
@@ -144,3 +174,30 @@ impl HomographyError {
 }
 
 pub type Result<T, E = HomographyError> = std::result::Result<T, E>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bad_argument_is_never_degenerate_and_names_its_point() {
+        let e = HomographyError::NonFinitePoint {
+            set: PointSet::Destination,
+            index: 7,
+            x: f64::NAN,
+            y: 0.0,
+        };
+        assert!(e.is_invalid_argument() && !e.is_degenerate());
+        assert_eq!(e.point(), (Some(PointSet::Destination), Some(7)));
+        let e = HomographyError::AllButOneCollinear {
+            set: PointSet::Source,
+            outlier: 5,
+            relative_deviation: 0.0,
+        };
+        assert!(e.is_degenerate() && !e.is_invalid_argument());
+        assert_eq!(e.point(), (Some(PointSet::Source), Some(5)));
+        let e = HomographyError::TooFewPoints { got: 3 };
+        assert!(!e.is_degenerate() && !e.is_invalid_argument());
+        assert_eq!(e.point(), (None, None));
+    }
+}

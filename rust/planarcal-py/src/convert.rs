@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::PyModule;
 
-use crate::errors::invalid;
+use crate::errors::invalid_arg;
 
 static NUMPY: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
 
@@ -44,25 +44,31 @@ fn real_ndarray<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py,
             let converted = numpy(py)?
                 .call_method1(intern!(py, "asarray"), (obj,))
                 .map_err(|e| {
-                    invalid(format!(
-                        "{name} must be an array of numbers; converting {} failed: {e}",
-                        type_name(obj)
-                    ))
+                    invalid_arg(
+                        name,
+                        format!(
+                            "{name} must be an array of numbers; converting {} failed: {e}",
+                            type_name(obj)
+                        ),
+                    )
                 })?;
             converted.cast_into::<PyUntypedArray>().map_err(|_| {
-                invalid(format!(
-                    "{name} must be an array of numbers, got {}",
-                    type_name(obj)
-                ))
+                invalid_arg(
+                    name,
+                    format!("{name} must be an array of numbers, got {}", type_name(obj)),
+                )
             })?
         }
     };
     let kind = arr.dtype().kind();
     if !matches!(kind, b'f' | b'i' | b'u') {
-        return Err(invalid(format!(
-            "{name} must hold real numbers (integer or floating), got dtype {}",
-            arr.dtype()
-        )));
+        return Err(invalid_arg(
+            name,
+            format!(
+                "{name} must hold real numbers (integer or floating), got dtype {}",
+                arr.dtype()
+            ),
+        ));
     }
     Ok(arr)
 }
@@ -84,7 +90,7 @@ fn borrow<'py, T: numpy::Element>(
     }
     let ro = a
         .try_readonly()
-        .map_err(|e| invalid(format!("{name} cannot be read: {e}")))?;
+        .map_err(|e| invalid_arg(name, format!("{name} cannot be read: {e}")))?;
     if ro.as_slice().is_err() {
         return Ok(None);
     }
@@ -109,8 +115,8 @@ fn fresh_copy<'py, T: numpy::Element>(
     let copy = numpy(py)?.call_method(intern!(py, "array"), (&arr,), Some(&kwargs))?;
     let a = copy
         .cast::<PyArrayDyn<T>>()
-        .map_err(|_| invalid(format!("{name} could not be converted to {dtype}")))?;
-    borrow(a, name)?.ok_or_else(|| invalid(format!("{name} could not be copied")))
+        .map_err(|_| invalid_arg(name, format!("{name} could not be converted to {dtype}")))?;
+    borrow(a, name)?.ok_or_else(|| invalid_arg(name, format!("{name} could not be copied")))
 }
 
 /// The argument as float64 values.
@@ -131,9 +137,10 @@ pub fn u8_image<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<ArrayArg<'
         let what = real_ndarray(obj, name)
             .map(|a| format!("dtype {}", a.dtype()))
             .unwrap_or_else(|_| type_name(obj));
-        return Err(invalid(format!(
-            "{name} must be an 8-bit (uint8) image, got {what}"
-        )));
+        return Err(invalid_arg(
+            name,
+            format!("{name} must be an 8-bit (uint8) image, got {what}"),
+        ));
     };
     match borrow(a, name)? {
         Some(arg) => Ok(arg),
@@ -163,9 +170,12 @@ pub fn point_count(shape: &[usize], dims: usize, name: &str) -> PyResult<usize> 
         [n, d] if d == dims => Ok(n),
         [n, 1, d] if d == dims => Ok(n),
         [1, n, d] if d == dims => Ok(n),
-        _ => Err(invalid(format!(
+        _ => Err(invalid_arg(
+            name,
+            format!(
             "{name} must have shape (N, {dims}), (N, 1, {dims}) or (1, N, {dims}), got {shape:?}"
-        ))),
+        ),
+        )),
     }
 }
 
@@ -189,10 +199,10 @@ pub fn matrix3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<nalgebra::Matrix3
     let arg = f64_array(obj, name)?;
     let values = arg.values();
     if arg.shape != [3, 3] || values.len() != 9 {
-        return Err(invalid(format!(
-            "{name} must be a 3 x 3 matrix, got shape {:?}",
-            arg.shape
-        )));
+        return Err(invalid_arg(
+            name,
+            format!("{name} must be a 3 x 3 matrix, got shape {:?}", arg.shape),
+        ));
     }
     Ok(nalgebra::Matrix3::from_row_slice(values))
 }

@@ -1,62 +1,101 @@
-//! The one place core errors become Python exceptions. All are ValueError subclasses: the
-//! input is at fault. Their __module__ is `planarcal`, where users import them from.
+//! The one place core errors become Python exceptions. The classes are planarcal's own, defined
+//! once in Python (`planarcal/errors.py`, under the root `planarcal.Error`) and looked up here
+//! on first use; all are ValueError subclasses (the input is at fault). Errors that name a point
+//! carry it as attributes, `index` and `point_set` ("src" / "dst"), after the message: the
+//! classes take them positionally, so every error here is made lazily, without the GIL.
 
-use planarcal_core::lens::LensError;
-use planarcal_core::{HomographyError as CoreError, PointStatus, TransformReport};
-use pyo3::create_exception;
-use pyo3::exceptions::PyValueError;
+use planarcal_core::{
+    HomographyError as CoreError, LensError, MapFailure, PointSet, PointStatus, TransformReport,
+};
+use pyo3::import_exception;
 use pyo3::PyErr;
 
-create_exception!(
-    planarcal,
-    HomographyError,
-    PyValueError,
-    "The input cannot give a homography, or a homography cannot be applied to it."
-);
-create_exception!(
-    planarcal,
-    DegenerateError,
-    HomographyError,
-    "The points are well-formed but their geometry does not determine a homography."
-);
-create_exception!(
-    planarcal,
-    PointAtInfinityError,
-    HomographyError,
-    "Points that map to infinity or behind the horizon, or that are not finite."
-);
+import_exception!(planarcal.errors, ArgumentError);
+import_exception!(planarcal.errors, HomographyError);
+import_exception!(planarcal.errors, DegenerateError);
+import_exception!(planarcal.errors, PointAtInfinityError);
+import_exception!(planarcal.errors, LensModelError);
 
-create_exception!(
-    planarcal,
-    LensModelError,
-    PyValueError,
-    "A lens-distortion model that cannot be fitted or applied: no image size to centre it on, \
-     a distortion that folds the image over, a point outside the model's valid radius."
-);
+/// The Python name of a point set: the parameter names of the correspondence functions.
+fn set_name(set: PointSet) -> &'static str {
+    match set {
+        PointSet::Source => "src",
+        PointSet::Destination => "dst",
+    }
+}
+
+/// The exception arguments: the message, then `index` and `point_set` (None where unknown).
+type Args = (String, Option<usize>, Option<&'static str>);
+
+fn args(message: String, index: Option<usize>, set: Option<PointSet>) -> Args {
+    (message, index, set.map(set_name))
+}
 
 /// A lens error: homography problems keep their own types.
 pub fn lens_to_py(e: LensError) -> PyErr {
     match e {
         LensError::Homography(h) => to_py(h),
-        other => LensModelError::new_err(other.to_string()),
+        LensError::OutsideModel { index, .. } => {
+            LensModelError::new_err(args(e.to_string(), Some(index), None))
+        }
+        other => LensModelError::new_err(args(other.to_string(), None, None)),
     }
 }
 
+/// A core error as the Python exception of its kind: ArgumentError for a malformed argument,
+/// DegenerateError for geometry that determines no homography, else HomographyError.
 pub fn to_py(e: CoreError) -> PyErr {
-    if e.is_degenerate() {
-        DegenerateError::new_err(e.to_string())
+    to_py_in(e, "")
+}
+
+/// As `to_py`, the message after `context` (say which of several problems failed).
+pub fn to_py_in(e: CoreError, context: &str) -> PyErr {
+    let (set, index) = e.point();
+    let a = args(format!("{context}{e}"), index, set);
+    if e.is_invalid_argument() {
+        ArgumentError::new_err(a)
+    } else if e.is_degenerate() {
+        DegenerateError::new_err(a)
     } else {
-        HomographyError::new_err(e.to_string())
+        HomographyError::new_err(a)
     }
 }
 
 /// A bad argument, named by the caller (shape, dtype, option value).
 pub fn invalid(message: impl Into<String>) -> PyErr {
-    HomographyError::new_err(message.into())
+    ArgumentError::new_err(args(message.into(), None, None))
 }
 
-/// The error for a batch in which some points had no image.
-pub fn no_image(report: &TransformReport, total: usize, what: &str) -> PyErr {
+/// A bad array argument called `name`: when it is one of the point sets of a correspondence
+/// problem ("src", OpenCV's "srcPoints", "problems[3] src", ...) the error says which.
+pub fn invalid_arg(name: &str, message: impl Into<String>) -> PyErr {
+    let last = name.rsplit(' ').next().unwrap_or(name);
+    let set = match last {
+        "src" | "srcPoints" => Some(PointSet::Source),
+        "dst" | "dstPoints" => Some(PointSet::Destination),
+        _ => None,
+    };
+    ArgumentError::new_err(args(message.into(), None, set))
+}
+
+/// The error for pixels with no place on the plane, the first of them at `index`: beyond the
+/// lens model's valid radius is the lens model's error, the rest are points without an image.
+pub fn no_place(failure: MapFailure, index: usize, message: String) -> PyErr {
+    let a = args(message, Some(index), None);
+    match failure {
+        MapFailure::OutsideLens => LensModelError::new_err(a),
+        _ => PointAtInfinityError::new_err(a),
+    }
+}
+
+/// The error for a batch in which some points had no image (`set`: the points were that set
+/// of a correspondence problem).
+pub fn no_image(
+    report: &TransformReport,
+    total: usize,
+    what: &str,
+    set: Option<PointSet>,
+) -> PyErr {
     let mut parts = Vec::new();
     for (count, status) in [
         (report.non_finite, PointStatus::NonFinite),
@@ -79,9 +118,10 @@ pub fn no_image(report: &TransformReport, total: usize, what: &str) -> PyErr {
     } else {
         ""
     };
-    PointAtInfinityError::new_err(format!(
+    let message = format!(
         "{} of {total} {what} have no image under this homography ({}){first}{hint}",
         report.invalid(),
         parts.join(", "),
-    ))
+    );
+    PointAtInfinityError::new_err(args(message, report.first.map(|(i, _)| i), set))
 }

@@ -38,7 +38,7 @@ fn fit(
 /// estimate_homography(src, dst, solver="normalized_dlt", refine=False)
 /// --
 ///
-/// H (3 x 3, float64) with dst ~ H src; raises HomographyError / DegenerateError.
+/// H (3 x 3, float64) with dst ~ H src; raises ArgumentError / HomographyError / DegenerateError.
 #[pyfunction]
 #[pyo3(signature = (src, dst, solver = "normalized_dlt", refine = false))]
 pub fn estimate_homography<'py>(

@@ -24,15 +24,7 @@ fn _after_fork_in_child() {
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    let py = m.py();
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("HomographyError", py.get_type::<errors::HomographyError>())?;
-    m.add("DegenerateError", py.get_type::<errors::DegenerateError>())?;
-    m.add(
-        "PointAtInfinityError",
-        py.get_type::<errors::PointAtInfinityError>(),
-    )?;
-    m.add("LensModelError", py.get_type::<errors::LensModelError>())?;
     m.add_class::<plane_model::FittedPlane>()?;
     m.add_class::<mapper::PlaneMapper>()?;
     m.add_class::<tracking::Tracks>()?;

@@ -5,12 +5,11 @@ use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use planarcal_core::lens::RadialLens;
 use planarcal_core::mapper::{MapReport, PlaneMapper as CoreMapper, Undistortion};
 use planarcal_core::plane_model::PlaneModel;
-use planarcal_core::uncertainty::MapFailure;
 use pyo3::intern;
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
-use crate::errors::{invalid, lens_to_py, LensModelError, PointAtInfinityError};
+use crate::errors::{invalid, lens_to_py, no_place};
 use crate::estimate::matrix_out;
 use crate::plane_model::FittedPlane;
 use crate::transform::{maybe_detach, new_array, on_invalid, OnInvalid};
@@ -49,10 +48,7 @@ fn map_error(report: &MapReport, total: usize) -> Option<PyErr> {
         report.invalid(),
         failure.describe()
     );
-    Some(match failure {
-        MapFailure::OutsideLens => LensModelError::new_err(message),
-        _ => PointAtInfinityError::new_err(message),
-    })
+    Some(no_place(failure, index, message))
 }
 
 fn dtype_name(obj: &Bound<'_, PyAny>) -> String {

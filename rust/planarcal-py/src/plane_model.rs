@@ -13,7 +13,7 @@ use planarcal_core::Point;
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
-use crate::errors::{invalid, lens_to_py, LensModelError, PointAtInfinityError};
+use crate::errors::{invalid, lens_to_py, no_place, LensModelError};
 use crate::estimate::matrix_out;
 use crate::transform::{maybe_detach, on_invalid, OnInvalid};
 
@@ -54,10 +54,7 @@ fn map_error(failure: MapFailure, index: usize, failed: usize, total: usize) -> 
          which {}",
         failure.describe()
     );
-    match failure {
-        MapFailure::OutsideLens => LensModelError::new_err(message),
-        _ => PointAtInfinityError::new_err(message),
-    }
+    no_place(failure, index, message)
 }
 
 impl FittedPlane {

@@ -1,7 +1,7 @@
 //! Reprojection errors (Eq. 6) and their statistics (Eq. 7, RMS, max, min).
 
 use numpy::PyArrayDyn;
-use planarcal_core::{reprojection_errors_into, ErrorStats, Orientation};
+use planarcal_core::{reprojection_errors_into, ErrorStats, Orientation, PointSet};
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
@@ -37,7 +37,12 @@ pub fn reprojection_errors<'py>(
     })?;
     let report = report.map_err(to_py)?;
     if mode == OnInvalid::Raise && report.invalid() > 0 {
-        return Err(no_image(&report, n, "source points"));
+        return Err(no_image(
+            &report,
+            n,
+            "source points",
+            Some(PointSet::Source),
+        ));
     }
     Ok(out)
 }

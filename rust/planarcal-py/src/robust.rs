@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyList;
 
 use crate::convert::{f64_array, points2, Points2};
-use crate::errors::{invalid, to_py};
+use crate::errors::{invalid, to_py, to_py_in};
 use crate::estimate::{matrix_out, HomographyAndMask};
 
 /// (H or None, inlier mask (N,) bool, n_inliers, iterations, stop, rms, threshold, lo_runs).
@@ -156,7 +156,7 @@ pub fn estimate_homography_robust_batch<'py>(
     let results = py.detach(|| estimate_robust_batch(&views, &o));
     let out = PyList::empty(py);
     for (i, r) in results.into_iter().enumerate() {
-        let r = r.map_err(|e| invalid(format!("problems[{i}]: {e}")))?;
+        let r = r.map_err(|e| to_py_in(e, &format!("problems[{i}]: ")))?;
         out.append(result_tuple(py, r))?;
     }
     Ok(out)

@@ -88,7 +88,7 @@ pub fn transform_points<'py>(
         t.apply_all(src, o.as_chunks_mut::<2>().0, Orientation::Oriented)
     })?;
     if mode == OnInvalid::Raise && report.invalid() > 0 {
-        return Err(no_image(&report, n, "points"));
+        return Err(no_image(&report, n, "points", None));
     }
     Ok(out)
 }
@@ -169,7 +169,7 @@ pub fn perspective_transform<'py>(
         Floats::F64(a) => run!(a, f64),
     }?;
     if report.invalid() > 0 {
-        return Err(no_image(&report, n, "points"));
+        return Err(no_image(&report, n, "points", None));
     }
     Ok(Some(out))
 }
