@@ -10,7 +10,7 @@
 
 use std::time::Instant;
 
-use planarcal_core::robust::Pcg32;
+use planarcal_core::Pcg32;
 use planarcal_core::{estimate_robust, Point, RobustOptions};
 
 const TRUTH: [f64; 9] = [1.05, -0.1, 20.0, 0.08, 0.95, -30.0, 1e-4, -5e-5, 1.0];

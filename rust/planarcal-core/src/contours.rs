@@ -17,6 +17,7 @@ use crate::Point;
 pub struct ContourFilter {
     /// The enclosed area of the traced contour, px^2, inclusive.
     pub min_area: f64,
+    /// The largest enclosed area kept, px^2, inclusive.
     pub max_area: f64,
     /// Keep contours whose bounding box touches the frame's border (their centroid is not
     /// the object's).

@@ -73,10 +73,6 @@ impl<'a> Correspondences<'a> {
         self.src.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.src.is_empty()
-    }
-
     /// The normalised pairs (T_s src_i, T_d dst_i).
     pub fn normalized_pairs(&self) -> impl Iterator<Item = (Point, Point)> + '_ {
         self.src

@@ -62,8 +62,11 @@ const PARALLEL_MIN_DOTS: usize = 2;
 /// any that converts to f64 exactly (f32, f64, u8).
 #[derive(Clone, Copy)]
 pub struct InkImage<'a, T> {
+    /// `width * height` grey levels.
     pub pixels: &'a [T],
+    /// Pixels a row.
     pub width: usize,
+    /// Rows.
     pub height: usize,
 }
 
@@ -125,6 +128,7 @@ pub struct DotCentre {
     pub centre: Point,
     /// The ink's area, px^2 (coverage-weighted); pi r^2 of the starting size where not refined.
     pub area: f64,
+    /// Refined, or why not.
     pub status: DotStatus,
 }
 

@@ -5,7 +5,9 @@ use std::fmt;
 /// Which of the two point sets of a correspondence problem an error is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PointSet {
+    /// The points in the plane's own frame (`src`).
     Source,
+    /// The points they map to (`dst`).
     Destination,
 }
 
@@ -21,110 +23,180 @@ impl fmt::Display for PointSet {
 /// Why a homography could not be estimated or applied.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum HomographyError {
+    /// The two sets differ in length.
     #[error("source and destination must hold the same number of points, got {src} and {dst}")]
-    LengthMismatch { src: usize, dst: usize },
+    LengthMismatch {
+        /// Source points given.
+        src: usize,
+        /// Destination points given.
+        dst: usize,
+    },
 
+    /// Fewer than four correspondences.
     #[error("a homography needs at least 4 point correspondences, got {got}")]
-    TooFewPoints { got: usize },
+    TooFewPoints {
+        /// Correspondences given.
+        got: usize,
+    },
 
+    /// A coordinate is NaN or infinite.
     #[error("{set} point {index} is not finite: ({x}, {y})")]
     NonFinitePoint {
+        /// The set holding the point.
         set: PointSet,
+        /// Its index in that set.
         index: usize,
+        /// Its x.
         x: f64,
+        /// Its y.
         y: f64,
     },
 
+    /// The robust search's scores do not match the points.
     #[error("scores must hold one number per correspondence: {points} points, {scores} scores")]
-    ScoresLength { points: usize, scores: usize },
+    ScoresLength {
+        /// Correspondences given.
+        points: usize,
+        /// Scores given.
+        scores: usize,
+    },
 
+    /// An option is out of its range.
     #[error("{name} must be {expected}, got {value}")]
     InvalidParameter {
+        /// The option's name.
         name: &'static str,
+        /// The value given.
         value: f64,
+        /// What it must be, in words.
         expected: &'static str,
     },
 
+    /// A given homography has a NaN or infinite entry.
     #[error("the homography matrix has a non-finite entry at row {row}, column {col}")]
-    NonFiniteMatrix { row: usize, col: usize },
+    NonFiniteMatrix {
+        /// The entry's row.
+        row: usize,
+        /// The entry's column.
+        col: usize,
+    },
 
+    /// Fewer than four distinct points in a set.
     #[error(
         "only {distinct} distinct {set} points (the rest are duplicates); \
          a homography needs at least 4 distinct points, no 3 of them on one line"
     )]
-    TooFewDistinct { set: PointSet, distinct: usize },
+    TooFewDistinct {
+        /// The set with too few.
+        set: PointSet,
+        /// Its distinct points.
+        distinct: usize,
+    },
 
+    /// H's entries would overflow f64.
     #[error(
         "the homography between these point sets cannot be represented in double precision: \
          their scales differ so much that its entries would overflow; rescale the coordinates"
     )]
     Unrepresentable,
 
+    /// A set too small or too large to normalise.
     #[error(
         "the {set} points' spread ({spread:.1e}) is beyond what floating point can normalise; \
          rescale the coordinates"
     )]
-    SpreadOutOfRange { set: PointSet, spread: f64 },
+    SpreadOutOfRange {
+        /// The set whose spread it is.
+        set: PointSet,
+        /// Its RMS distance from its centroid.
+        spread: f64,
+    },
 
+    /// Every point of a set on one line.
     #[error(
         "all {set} points lie on one line (within {relative_deviation:.1e} of their extent); \
          a homography needs at least 4 points, no 3 of them on one line"
     )]
     Collinear {
+        /// The set on one line.
         set: PointSet,
+        /// Its largest distance from the line over its extent.
         relative_deviation: f64,
     },
 
+    /// Every point of a set but one on one line.
     #[error(
         "all {set} points but one (point {outlier}) lie on one line (within \
          {relative_deviation:.1e} of their extent); a homography needs at least 4 points, \
          no 3 of them on one line"
     )]
     AllButOneCollinear {
+        /// The set on one line.
         set: PointSet,
+        /// The index of the one point off it.
         outlier: usize,
+        /// The others' largest distance from the line over their extent.
         relative_deviation: f64,
     },
 
+    /// The linear system does not fix H.
     #[error(
         "the correspondences do not determine a homography: the linear system is \
          rank-deficient (second-smallest to largest singular value ratio {ratio:.1e})"
     )]
-    RankDeficient { ratio: f64 },
+    RankDeficient {
+        /// Second-smallest over largest singular value.
+        ratio: f64,
+    },
 
+    /// Raw coordinates too ill-conditioned for the solver.
     #[error(
         "the {solver} solver cannot resolve this problem in raw coordinates: rounding alone \
          would perturb H by about {forward_error:.1e} (relative); use the normalized_dlt solver, \
          which normalises the points first"
     )]
     IllConditioned {
+        /// The solver asked for.
         solver: &'static str,
+        /// The relative change in H that rounding alone could make.
         forward_error: f64,
     },
 
+    /// The a33 = 1 parametrisation cannot hold this H.
     #[error(
         "h33 is near zero ({relative:.1e} of the scale of the data): the source origin maps \
          (nearly) to infinity, so the a33 = 1 parametrisation cannot represent this homography; \
          use the normalized_dlt solver"
     )]
-    H33NearZero { relative: f64 },
+    H33NearZero {
+        /// |h33| over the scale of the data.
+        relative: f64,
+    },
 
+    /// Points on both sides of the fitted horizon.
     #[error(
         "the fitted homography puts source point {index} on the other side of the horizon \
          from the rest ({behind} of {total} points): no camera sees such a plane, so the \
          correspondences are inconsistent (outliers or mismatched order?)"
     )]
     MixedOrientation {
+        /// A source point on the minority's side.
         index: usize,
+        /// Points on that side.
         behind: usize,
+        /// All points.
         total: usize,
     },
 
+    /// H collapses the plane and has no inverse.
     #[error(
         "the homography is singular (smallest to largest singular value ratio {ratio:.1e}): \
          it collapses the plane onto a line or a point and has no inverse"
     )]
-    Singular { ratio: f64 },
+    Singular {
+        /// Smallest over largest singular value.
+        ratio: f64,
+    },
 }
 
 impl HomographyError {
@@ -173,6 +245,7 @@ impl HomographyError {
     }
 }
 
+/// The core's result: a value or a [`HomographyError`].
 pub type Result<T, E = HomographyError> = std::result::Result<T, E>;
 
 #[cfg(test)]

@@ -28,8 +28,10 @@ pub enum Solver {
 }
 
 impl Solver {
+    /// Every solver.
     pub const ALL: [Solver; 3] = [Solver::NormalizedDlt, Solver::Svd, Solver::A33];
 
+    /// Its name, as the bindings spell it.
     pub fn name(self) -> &'static str {
         match self {
             Solver::NormalizedDlt => "normalized_dlt",
@@ -45,6 +47,7 @@ impl fmt::Display for Solver {
     }
 }
 
+/// A solver name that is none of [`Solver::ALL`]'s (the name given).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("unknown solver {0:?}; expected one of \"normalized_dlt\", \"svd\", \"a33\"")]
 pub struct UnknownSolver(pub String);
@@ -64,6 +67,7 @@ impl FromStr for Solver {
 pub struct Estimate {
     /// Oriented (source points at w > 0) and scaled so |h33| = 1 (see `orientation`).
     pub h: Matrix3<f64>,
+    /// What refinement did; None when it did not run.
     pub refinement: Option<RefineReport>,
 }
 

@@ -4,8 +4,11 @@
 /// An 8-bit grey frame, row-major, `width` pixels a row.
 #[derive(Clone, Copy)]
 pub struct GreyU8<'a> {
+    /// `width * height` grey levels.
     pub pixels: &'a [u8],
+    /// Pixels a row.
     pub width: usize,
+    /// Rows.
     pub height: usize,
 }
 

@@ -15,13 +15,16 @@ use crate::Point;
 /// any valid radius; this bounds the loop on pathological input.
 const MAX_NEWTON_STEPS: usize = 50;
 
+/// The two-term radial lens above: where an ideal pixel appears, and back.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RadialLens {
     /// The distortion centre, px.
     pub centre: Point,
     /// The radius unit s, px (fixed by the image's size, not fitted).
     pub scale: f64,
+    /// The rho^2 coefficient.
     pub k1: f64,
+    /// The rho^4 coefficient.
     pub k2: f64,
 }
 
@@ -33,10 +36,15 @@ pub enum LensError {
          from its centre, inside the {reach:.0} px the image reaches: no lens does that; the \
          board probably covers too little of the image to determine the distortion"
     )]
+    /// The radial map folds over inside the image.
     FoldsOver {
+        /// The lens's k1.
         k1: f64,
+        /// The lens's k2.
         k2: f64,
+        /// Where it folds, px from the centre.
         radius: f64,
+        /// How far the image reaches from the centre, px.
         reach: f64,
     },
 
@@ -44,27 +52,49 @@ pub enum LensError {
         "point {index} ({x}, {y}) lies beyond the lens model's valid radius ({radius:.0} px from \
          its centre), where the distortion cannot be inverted"
     )]
+    /// A point beyond the radius where the model inverts.
     OutsideModel {
+        /// The point's index.
         index: usize,
+        /// Its x, px.
         x: f64,
+        /// Its y, px.
         y: f64,
+        /// The valid radius, px.
         radius: f64,
     },
 
     #[error("the lens model needs {what}, got {value}")]
-    InvalidLens { what: &'static str, value: f64 },
+    /// A lens parameter out of range.
+    InvalidLens {
+        /// What it must be, in words.
+        what: &'static str,
+        /// The value given.
+        value: f64,
+    },
 
     #[error("the image size must be two positive whole numbers of pixels, got {width} x {height}")]
-    InvalidImageSize { width: f64, height: f64 },
+    /// An image size that is not two positive whole numbers.
+    InvalidImageSize {
+        /// The width given.
+        width: f64,
+        /// The height given.
+        height: f64,
+    },
 
     #[error(
         "{n} points cannot fit the {model} model ({params} parameters): it needs at least \
          {needed}"
     )]
+    /// Fewer points than the model needs.
     TooFewPoints {
+        /// Points given.
         n: usize,
+        /// The model's name.
         model: &'static str,
+        /// Its parameters.
         params: usize,
+        /// The points it needs.
         needed: usize,
     },
 
@@ -72,8 +102,13 @@ pub enum LensError {
         "the points do not determine the {model} model: its normal equations are singular \
          (the board covers too little of the image, or too few points)"
     )]
-    Undetermined { model: &'static str },
+    /// The points do not fix the model.
+    Undetermined {
+        /// The model's name.
+        model: &'static str,
+    },
 
+    /// The homography part failed.
     #[error(transparent)]
     Homography(#[from] HomographyError),
 }
@@ -113,6 +148,7 @@ impl RadialLens {
         Ok(())
     }
 
+    /// No distortion at all (k1 = k2 = 0).
     pub fn is_identity(&self) -> bool {
         self.k1 == 0.0 && self.k2 == 0.0
     }

@@ -14,31 +14,35 @@
 //! sub-pixel)
 //! and `tracking` keeps their IDs from frame to frame.
 //! Geometry is f64; nothing panics on user input.
+//!
+//! The modules are the crate's own; its surface is the items re-exported here.
 
-pub mod a33;
-pub mod contours;
-pub mod correspondences;
-pub mod degeneracy;
-pub mod dlt;
-pub mod dot_centres;
-pub mod error;
-pub mod estimate;
-pub mod image;
-pub mod leave_one_out;
-pub mod lens;
-pub mod mapper;
-pub mod normalize;
-pub mod orientation;
-pub mod outline;
-pub mod plane_model;
-pub mod refine;
-pub mod reprojection;
-pub mod robust;
-pub mod smooth;
-pub mod threads;
-pub mod tracking;
-pub mod transform;
-pub mod uncertainty;
+#![deny(missing_docs)]
+
+mod a33;
+mod contours;
+mod correspondences;
+mod degeneracy;
+mod dlt;
+mod dot_centres;
+mod error;
+mod estimate;
+mod image;
+mod leave_one_out;
+mod lens;
+mod mapper;
+mod normalize;
+mod orientation;
+mod outline;
+mod plane_model;
+mod refine;
+mod reprojection;
+mod robust;
+mod smooth;
+mod threads;
+mod tracking;
+mod transform;
+mod uncertainty;
 
 #[cfg(test)]
 mod testing;
@@ -46,14 +50,26 @@ mod testing;
 /// A 2-D point (x, y).
 pub type Point = [f64; 2];
 
+pub use contours::{fewest_points, measure_contours, reading_order, ContourFilter};
+pub use dot_centres::{refine_dot_centres, DotCentre, DotStatus, InkImage};
 pub use error::{HomographyError, PointSet, Result};
 pub use estimate::{
     estimate, estimate_homography, refine_homography, with_unit_h33, Estimate, Solver,
     UnknownSolver,
 };
+pub use image::{median_grey, GreyU8};
+pub use leave_one_out::leave_one_out;
+pub use lens::{LensError, RadialLens};
+pub use mapper::{MapReport, PlaneMapper, Undistortion};
+pub use plane_model::{fit_plane, plane_fit_at, LensParams, PlaneFit, PlaneModel};
 pub use refine::RefineReport;
 pub use reprojection::{reprojection_errors_into, ErrorStats};
 pub use robust::{
-    estimate_robust, estimate_robust_batch, Method, RobustOptions, RobustResult, StopReason,
+    estimate_robust, estimate_robust_batch, Method, Pcg32, RobustOptions, RobustResult, StopReason,
 };
-pub use transform::{invert, Homography, Orientation, PointStatus, Projective, TransformReport};
+pub use threads::forked_child;
+pub use tracking::Tracks;
+pub use transform::{
+    invert, Coord, Homography, Orientation, PointStatus, Projective, TransformReport,
+};
+pub use uncertainty::{predicted_loo_covariance, world_covariance, InversePlane, MapFailure};

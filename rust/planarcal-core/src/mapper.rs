@@ -90,8 +90,11 @@ pub enum Undistortion {
     /// A polynomial in the squared radius, then Newton steps, out to `radius_px` from the lens
     /// centre; beyond it (where the lens may fold over, or past the image) by Newton.
     Polynomial {
+        /// The polynomial's degree in r^2.
         degree: usize,
+        /// Newton steps after it.
         newton_steps: usize,
+        /// How far from the lens centre it serves, px.
         radius_px: f64,
         /// The largest difference from `RadialLens::undistort` on the check grid, px.
         max_error_px: f64,
@@ -103,6 +106,7 @@ pub enum Undistortion {
 }
 
 impl Undistortion {
+    /// The choice in words, for reports.
     pub fn describe(&self) -> String {
         match *self {
             Undistortion::None => "none (ideal lens)".into(),
@@ -126,13 +130,18 @@ impl Undistortion {
 /// Counts of the pixels a batch could not map, and the first of them.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct MapReport {
+    /// Pixels with a NaN or infinite coordinate.
     pub non_finite: usize,
+    /// Pixels beyond the lens model's valid radius.
     pub outside_lens: usize,
+    /// Pixels whose ray misses the plane.
     pub behind_horizon: usize,
+    /// The first failed pixel's index and why.
     pub first: Option<(usize, MapFailure)>,
 }
 
 impl MapReport {
+    /// Pixels not mapped.
     pub fn invalid(&self) -> usize {
         self.non_finite + self.outside_lens + self.behind_horizon
     }
@@ -642,14 +651,17 @@ impl PlaneMapper {
         })
     }
 
+    /// The model it maps through.
     pub fn model(&self) -> &PlaneModel {
         &self.model
     }
 
+    /// The image size (width, height) it serves, px.
     pub fn image_size(&self) -> [f64; 2] {
         self.image_size
     }
 
+    /// How it inverts the lens.
     pub fn undistortion(&self) -> Undistortion {
         self.undistortion
     }

@@ -34,13 +34,16 @@ const MAX_ITERATIONS: usize = 200;
 pub enum LensParams {
     /// A homography alone (the lens is taken as ideal, or already removed).
     None,
+    /// k1 alone.
     K1,
+    /// k1 and k2.
     K1K2,
     /// k1, k2 and the distortion centre.
     K1K2Centre,
 }
 
 impl LensParams {
+    /// Every choice, simplest first.
     pub const ALL: [LensParams; 4] = [
         LensParams::None,
         LensParams::K1,
@@ -48,6 +51,7 @@ impl LensParams {
         LensParams::K1K2Centre,
     ];
 
+    /// Its name, as the bindings and the calibration file spell it.
     pub fn name(self) -> &'static str {
         match self {
             LensParams::None => "none",
@@ -57,6 +61,7 @@ impl LensParams {
         }
     }
 
+    /// The choice of that name, if any.
     pub fn from_name(name: &str) -> Option<Self> {
         LensParams::ALL.into_iter().find(|p| p.name() == name)
     }
@@ -89,7 +94,9 @@ impl LensParams {
 /// A fitted plane: world (mm) -> ideal pixels by `h`, ideal -> real pixels by `lens`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlaneModel {
+    /// World (mm) to ideal pixels.
     pub h: Matrix3<f64>,
+    /// Ideal to real pixels.
     pub lens: RadialLens,
 }
 
@@ -341,9 +348,13 @@ pub fn inverse_normal(jtj: &MatP, free: LensParams) -> Option<MatP> {
 /// What a fit found.
 #[derive(Debug, Clone, Copy)]
 pub struct PlaneFit {
+    /// The fitted model.
     pub model: PlaneModel,
+    /// Its parameter vector (the layout above).
     pub params: Params,
+    /// Which lens parameters were fitted.
     pub free: LensParams,
+    /// Levenberg-Marquardt iterations run.
     pub iterations: usize,
     /// Sum of squared residuals, px^2.
     pub cost: f64,
@@ -363,6 +374,7 @@ impl PlaneFit {
         (self.cost / self.dof as f64).sqrt()
     }
 
+    /// The parameters' covariance: sigma^2 (J^T J)^-1.
     pub fn covariance(&self) -> MatP {
         self.jtj_inv * (self.cost / self.dof as f64)
     }

@@ -17,9 +17,11 @@ const MAX_ITERATIONS: usize = 100;
 /// What the refinement did, for diagnostics and tests.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RefineReport {
+    /// Levenberg-Marquardt iterations run.
     pub iterations: usize,
     /// Sum of squared transfer errors before and after, in the caller's destination units.
     pub initial_cost: f64,
+    /// See `initial_cost`.
     pub final_cost: f64,
 }
 

@@ -36,12 +36,19 @@ pub fn reprojection_errors_into(
 /// Summary statistics of a set of errors.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ErrorStats {
+    /// Errors summarised.
     pub count: usize,
+    /// Their mean.
     pub mean: f64,
+    /// Their root mean square.
     pub rms: f64,
+    /// The largest.
     pub max: f64,
+    /// The smallest.
     pub min: f64,
+    /// The index of the largest.
     pub argmax: usize,
+    /// The index of the smallest.
     pub argmin: usize,
 }
 

@@ -93,10 +93,12 @@ impl Tracks {
         self.ids.iter().copied().zip(self.positions.iter().copied())
     }
 
+    /// Live tracks.
     pub fn len(&self) -> usize {
         self.ids.len()
     }
 
+    /// No live track.
     pub fn is_empty(&self) -> bool {
         self.ids.is_empty()
     }

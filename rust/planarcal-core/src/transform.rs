@@ -25,6 +25,7 @@ pub enum PointStatus {
 }
 
 impl PointStatus {
+    /// The failure in words, after "point ... ".
     pub fn describe(self) -> &'static str {
         match self {
             PointStatus::NonFinite => "has a non-finite coordinate",
@@ -38,20 +39,27 @@ impl PointStatus {
 /// (matrices of unknown sign, as OpenCV treats them).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Orientation {
+    /// Points with w < 0 are behind the horizon.
     Oriented,
+    /// Only w = 0 fails.
     Unoriented,
 }
 
 /// Counts of the points a batch could not map, and the first of them.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TransformReport {
+    /// Points with a NaN or infinite coordinate.
     pub non_finite: usize,
+    /// Points mapped to infinity (w = 0).
     pub at_infinity: usize,
+    /// Points behind the horizon (w < 0, oriented).
     pub behind_horizon: usize,
+    /// The first failed point's index and why.
     pub first: Option<(usize, PointStatus)>,
 }
 
 impl TransformReport {
+    /// Points not mapped.
     pub fn invalid(&self) -> usize {
         self.non_finite + self.at_infinity + self.behind_horizon
     }
@@ -79,9 +87,13 @@ impl TransformReport {
 
 /// A coordinate type points are read from and written to; arithmetic is always f64.
 pub trait Coord: Copy + Send + Sync + 'static {
+    /// The type's NaN, written for a point that cannot be mapped.
     const NAN: Self;
+    /// As f64.
     fn get(self) -> f64;
+    /// From f64 (rounded to the type).
     fn put(v: f64) -> Self;
+    /// Neither NaN nor infinite.
     fn is_finite(self) -> bool;
 }
 
@@ -313,6 +325,7 @@ fn narrow<T: Coord, const D: usize>(y: &[f64; D]) -> std::result::Result<[T; D],
 pub type Homography = Projective<2, 2>;
 
 impl Homography {
+    /// From a 3 x 3 matrix; refused if an entry is not finite.
     pub fn from_matrix(h: &Matrix3<f64>) -> Result<Self> {
         let rows: Vec<f64> = (0..9).map(|k| h[(k / 3, k % 3)]).collect();
         Self::from_row_major(&rows)

@@ -17,6 +17,7 @@ use crate::Point;
 /// Why a pixel has no place on the plane.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MapFailure {
+    /// A coordinate is NaN or infinite.
     NonFinite,
     /// Beyond the radius where the lens model can be inverted.
     OutsideLens,
@@ -25,6 +26,7 @@ pub enum MapFailure {
 }
 
 impl MapFailure {
+    /// The failure in words, after "pixel ... ".
     pub fn describe(self) -> &'static str {
         match self {
             MapFailure::NonFinite => "has a non-finite coordinate",
@@ -46,6 +48,7 @@ pub struct InversePlane {
 }
 
 impl InversePlane {
+    /// The inverse of `model`, refused if its lens or homography has none.
     pub fn new(model: &PlaneModel) -> Result<Self, LensError> {
         model.lens.validate()?;
         Ok(InversePlane {

@@ -5,11 +5,8 @@
 //! many times: the suite runs unoptimised in CI.)
 
 use nalgebra::Matrix3;
-use planarcal_core::leave_one_out::leave_one_out;
-use planarcal_core::lens::RadialLens;
-use planarcal_core::plane_model::{fit_plane, LensParams, PlaneModel};
-use planarcal_core::uncertainty::InversePlane;
 use planarcal_core::Point;
+use planarcal_core::{fit_plane, leave_one_out, InversePlane, LensParams, PlaneModel, RadialLens};
 use proptest::prelude::*;
 
 const SIZE: [f64; 2] = [1280.0, 720.0];

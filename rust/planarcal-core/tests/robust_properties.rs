@@ -3,7 +3,7 @@
 //! bad options and hopeless data get a clear answer.
 
 use nalgebra::{Matrix3, Vector3};
-use planarcal_core::robust::Pcg32;
+use planarcal_core::Pcg32;
 use planarcal_core::{
     estimate, estimate_robust, estimate_robust_batch, HomographyError, Method, Point,
     RobustOptions, Solver, StopReason,

@@ -2,10 +2,10 @@
 //! frame with the GIL released: the per-object work of object location.
 
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
-use planarcal_core::contours::{
-    fewest_points, measure_contours as measure, reading_order as order, ContourFilter,
+use planarcal_core::{
+    fewest_points, measure_contours as measure, median_grey as median, reading_order as order,
+    ContourFilter, GreyU8,
 };
-use planarcal_core::image::{median_grey as median, GreyU8};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 

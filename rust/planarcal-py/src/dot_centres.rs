@@ -2,7 +2,7 @@
 //! the GIL released: the per-dot work of board detection.
 
 use numpy::{PyArray1, PyArrayMethods};
-use planarcal_core::dot_centres::{refine_dot_centres as refine, DotCentre, InkImage};
+use planarcal_core::{refine_dot_centres as refine, DotCentre, InkImage};
 use pyo3::prelude::*;
 
 use crate::convert::{f64_array, float_array, point_count, ArrayArg, Floats};

@@ -19,7 +19,7 @@ use pyo3::prelude::*;
 /// Called by Python's os.register_at_fork in a forked child: see planarcal_core::threads.
 #[pyfunction]
 fn _after_fork_in_child() {
-    planarcal_core::threads::forked_child();
+    planarcal_core::forked_child();
 }
 
 #[pymodule]

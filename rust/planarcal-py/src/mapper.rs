@@ -2,9 +2,7 @@
 //! one call, into a fresh array or one the caller keeps.
 
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
-use planarcal_core::lens::RadialLens;
-use planarcal_core::mapper::{MapReport, PlaneMapper as CoreMapper, Undistortion};
-use planarcal_core::plane_model::PlaneModel;
+use planarcal_core::{MapReport, PlaneMapper as CoreMapper, PlaneModel, RadialLens, Undistortion};
 use pyo3::intern;
 use pyo3::prelude::*;
 

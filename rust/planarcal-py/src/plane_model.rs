@@ -3,13 +3,10 @@
 
 use nalgebra::Matrix2;
 use numpy::{PyArray1, PyArrayMethods};
-use planarcal_core::leave_one_out::leave_one_out;
-use planarcal_core::lens::RadialLens;
-use planarcal_core::plane_model::{fit_plane, plane_fit_at, LensParams, PlaneFit, PlaneModel};
-use planarcal_core::uncertainty::{
-    predicted_loo_covariance, world_covariance, InversePlane, MapFailure,
+use planarcal_core::{
+    fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, world_covariance,
+    InversePlane, LensParams, MapFailure, PlaneFit, PlaneModel, Point, RadialLens,
 };
-use planarcal_core::Point;
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};

@@ -1,7 +1,7 @@
 //! Object IDs from frame to frame (planarcal_core::tracking): one call per frame.
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
-use planarcal_core::tracking::Tracks as CoreTracks;
+use planarcal_core::Tracks as CoreTracks;
 use pyo3::prelude::*;
 
 use crate::convert::{f64_array, points2};

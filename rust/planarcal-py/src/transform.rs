@@ -1,8 +1,7 @@
 //! Point transforms: the native transform_points and OpenCV's perspectiveTransform.
 
 use numpy::{PyArrayDyn, PyArrayMethods};
-use planarcal_core::transform::Coord;
-use planarcal_core::{invert, Homography, Orientation, Projective, TransformReport};
+use planarcal_core::{invert, Coord, Homography, Orientation, Projective, TransformReport};
 use pyo3::prelude::*;
 
 use crate::convert::{f64_array, float_array, matrix3, point_count, points2, ArrayArg, Floats};

@@ -50,6 +50,7 @@ pub enum Method {
     Lmeds,
 }
 
+/// How the robust search runs ([`estimate_robust`]); the defaults are OpenCV's.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobustOptions {
     /// Largest transfer error (destination units, e.g. px) of an inlier (MSAC only).
@@ -59,9 +60,11 @@ pub struct RobustOptions {
     /// Most iterations: minimal samples that pass the sample checks, as OpenCV counts them
     /// (at most MAX_DRAWS_PER_ITERATION times as many are drawn).
     pub max_iters: usize,
+    /// The sampler's seed: the same seed, the same result.
     pub seed: u64,
     /// Quality of each correspondence (higher is better): PROSAC samples the best first.
     pub scores: Option<Vec<f64>>,
+    /// The scoring and sampling scheme.
     pub method: Method,
     /// Score hypotheses on several threads (results are the same either way).
     pub parallel: bool,
@@ -93,6 +96,7 @@ pub enum StopReason {
 }
 
 impl StopReason {
+    /// Its name, as the bindings spell it.
     pub fn name(self) -> &'static str {
         match self {
             StopReason::Converged => "converged",
@@ -102,15 +106,18 @@ impl StopReason {
     }
 }
 
+/// What the robust search found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobustResult {
     /// The homography (oriented, |h33| = 1), or None when no consensus was found.
     pub h: Option<Matrix3<f64>>,
     /// Inlier mask under the final H (all false without one).
     pub inliers: Vec<bool>,
+    /// Inliers in the mask.
     pub n_inliers: usize,
     /// Iterations: minimal samples that passed the sample checks.
     pub iterations: usize,
+    /// Why the search stopped.
     pub stop: StopReason,
     /// RMS transfer error of the inliers under H (destination units); NaN without H.
     pub rms_inlier_error: f64,
