@@ -36,6 +36,8 @@ from planarcal import synth
 from planarcal.board import CircleGridBoard
 from planarcal.calibration import Calibration
 from planarcal.detect import detect_board
+from planarcal.intrinsics import calibrate_camera
+from planarcal.objects import locate_objects
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 REAL = SHARED / "data" / "real" / "boofcv-circle-regular"
@@ -111,9 +113,6 @@ PLACES = [(-30, -20), (290, -20), (130, 90), (-30, 200), (290, 200), (60, 40), (
 
 
 def heights(n: int) -> tuple[list[list[str]], float]:
-    from planarcal.intrinsics import calibrate_camera
-    from planarcal.objects import locate_objects
-
     board = synth.PAPER_BOARD
     views = []
     for tilt, axis in ((25, 0), (25, 90), (30, 45), (30, 200), (20, 300), (28, 150)):

@@ -8,6 +8,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+import cv2
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
@@ -36,9 +38,6 @@ def paper_tables() -> dict[str, Any]:
 
 def decode_png(png: bytes) -> Any:
     """A PNG file's bytes decoded by OpenCV (BGR), checked to be a PNG that decodes."""
-    import cv2
-    import numpy as np
-
     assert png.startswith(b"\x89PNG")
     picture = cv2.imdecode(np.frombuffer(png, dtype=np.uint8), cv2.IMREAD_COLOR)
     assert picture is not None

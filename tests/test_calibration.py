@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import planarcal
+from conftest import SHARED
 from planarcal import paper_data
 from planarcal.board import CircleGridBoard
 from planarcal.calibration import FILE_VERSION, Calibration
@@ -174,8 +175,6 @@ def test_pickles_and_travels_to_a_worker_process(cal: Calibration) -> None:
 
 
 def test_from_image_on_the_papers_kind_of_board(tmp_path: Path) -> None:
-    from conftest import SHARED
-
     path = SHARED / "data" / "real" / "boofcv-circle-regular" / "image00003.jpg"
     if not path.exists():
         pytest.skip("../shared is absent")

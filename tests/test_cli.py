@@ -15,6 +15,7 @@ import pytest
 
 import planarcal
 from planarcal import synth
+from planarcal.cli import build_parser
 
 BOARD_ARGS = ["--cols", "14", "--rows", "10", "--pitch", "20", "--diameter", "10"]
 
@@ -343,8 +344,6 @@ def test_intrinsics_then_objects_of_known_height(tmp_path: Path) -> None:
 
 
 def test_board_arguments_default_per_command() -> None:
-    from planarcal.cli import build_parser
-
     parser = build_parser()
     # Printing: an origin marker unless told otherwise; the diameter is chosen by the command.
     printing = parser.parse_args(["board", "-o", "b.svg"])

@@ -21,6 +21,7 @@ from planarcal import drawing, paper_data, report, synth
 from planarcal.calibration import Calibration
 from planarcal.detect import detect_board
 from planarcal.errors import IntrinsicsError, LensModelError, PointAtInfinityError
+from planarcal.intrinsics import CameraIntrinsics
 
 # The per-point table's columns before the lens and uncertainty columns were added: scripts
 # read them by position, so they keep their order.
@@ -269,8 +270,6 @@ def test_four_points_leave_no_room_for_uncertainty(tmp_path: Path) -> None:
 def test_unmappable_pixels_are_masked_not_fatal(cal: Calibration) -> None:
     """Camera intrinsics whose distortion folds over inside the image: the corners of the
     working area have no place on the plane, and the figures leave them blank."""
-    from planarcal.intrinsics import CameraIntrinsics
-
     assert cal.image_size is not None
     w, h = cal.image_size
     f = 0.7 * w

@@ -6,9 +6,15 @@ growth."""
 from __future__ import annotations
 
 import gc
+import json
 import logging
 import os
+import signal
+import socket
+import subprocess
+import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +28,7 @@ from planarcal.calibration import Calibration
 from planarcal.capture import Camera
 from planarcal.detect import detect_board
 from planarcal.errors import CameraError, IntrinsicsError
+from planarcal.homography import transform_points
 from planarcal.tracker import FrameResult, Tracker
 
 N_FRAMES = 24
@@ -107,8 +114,6 @@ def test_objects_are_tracked_in_millimetres_through_a_video(calibration, video) 
     assert all(o.std_mm < 0.01 for r in results for o in r.objects)
     assert set(s.stage_s) == {"read", "detect", "map", "track"}
     # Each frame's JSON line parses back to what it says.
-    import json
-
     line = json.loads(results[3].to_json())
     assert line["frame"] == 3 and [o["id"] for o in line["objects"]] == [1, 2, 3]
 
@@ -332,9 +337,6 @@ def test_ten_thousand_frames_without_memory_growth(tmp_path) -> None:  # type: i
 
 
 def _run(*args: Any, **kwargs: Any) -> Any:
-    import subprocess
-    import sys
-
     return subprocess.run(
         [sys.executable, "-m", "planarcal", "run", *map(str, args)],
         capture_output=True,
@@ -346,8 +348,6 @@ def _run(*args: Any, **kwargs: Any) -> Any:
 
 
 def _lines(text: str) -> list[dict[str, Any]]:
-    import json
-
     return [json.loads(line) for line in text.splitlines() if line.strip()]
 
 
@@ -374,7 +374,6 @@ def test_run_writes_one_line_per_frame_to_a_file_and_stdout(calibration, video, 
     _check_lines(lines, truth, 0.15)
     assert "fps" in result.stderr and "detect" in result.stderr  # the stage report
     summary = result.stderr.split("planarcal run: ", 1)[1]
-    import json
 
     figures = json.loads(summary)
     assert figures["frames"] == N_FRAMES and figures["output"]["sent"] == N_FRAMES
@@ -387,8 +386,6 @@ def test_run_writes_one_line_per_frame_to_a_file_and_stdout(calibration, video, 
 
 
 def test_run_sends_to_a_tcp_controller_on_loopback(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    import socket
-
     path, truth, _ = video
     calib = calibration.save(tmp_path / "calib.json")
     server = socket.create_server(("127.0.0.1", 0))
@@ -414,19 +411,12 @@ def test_run_sends_to_a_tcp_controller_on_loopback(calibration, video, tmp_path)
     first = lines[0]["frame"]
     assert [line["frame"] for line in lines] == list(range(first, first + len(lines)))
     _check_lines(lines, truth, 0.15)
-    import json
 
     figures = json.loads(result.stderr.split("planarcal run: ", 1)[1])
     assert figures["output"]["sent"] + figures["output"]["dropped"] == N_FRAMES
 
 
 def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(calibration, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    import json
-    import signal
-    import subprocess
-    import sys
-    import time
-
     calib = calibration.save(tmp_path / "calib.json")
     # A long source: 3,000 frames of one rendered scene.
     scene = synth.render_scene(
@@ -476,8 +466,6 @@ def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(calibration, t
 
 
 def test_run_max_frames_counts_the_frames_read(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    import json
-
     _, truth, frames = video
     folder = tmp_path / "frames"
     folder.mkdir()
@@ -497,10 +485,6 @@ def test_run_max_frames_counts_the_frames_read(calibration, video, tmp_path) -> 
 
 
 def test_run_whose_every_frame_fails_exits_1_with_the_reason(video, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    import json
-
-    from planarcal.homography import transform_points
-
     path, _, _ = video
     # A calibration from another camera position: its horizon crosses these frames at
     # y = 400 px, and one of the parts is always below it (it sees no point of the plane

@@ -12,9 +12,12 @@ the image's border. A blob is a component seen at two or more levels, one inside
 from __future__ import annotations
 
 import dataclasses
+from concurrent.futures import ThreadPoolExecutor
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 F64 = NDArray[np.float64]
 
@@ -45,8 +48,6 @@ class Blobs:
 def find_blobs(ink_dark: NDArray[np.uint8], min_diameter: float, max_diameter: float) -> Blobs:
     """The dark blobs of `ink_dark` whose equivalent diameter is in [min_diameter,
     max_diameter] px, each seen at two or more grey levels."""
-    from concurrent.futures import ThreadPoolExecutor
-
     area_range = (np.pi / 4 * min_diameter**2, np.pi / 4 * max_diameter**2)
     # OpenCV releases the GIL: the levels are read side by side.
     with ThreadPoolExecutor(max_workers=2) as pool:
@@ -89,8 +90,6 @@ def _level_components(
 ) -> tuple[F64, F64]:
     """Centres (K, 2) and equivalent diameters (K,) of the filled ellipses darker than
     `level`."""
-    import cv2
-
     h, w = ink_dark.shape
     _, mask = cv2.threshold(ink_dark, level - 1, 1, cv2.THRESH_BINARY_INV)
     _, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
@@ -141,8 +140,6 @@ def _filled_ellipses(area: F64, sxx: F64, syy: F64, sxy: F64) -> NDArray[np.bool
 
 def _nearest(a: F64, b: F64) -> tuple[NDArray[np.intp], F64]:
     """For each point of `a`, the index of the nearest point of `b` and its distance."""
-    from scipy.spatial import cKDTree
-
     dist, index = cKDTree(b).query(a)
     return np.asarray(index, dtype=np.intp), np.asarray(dist, dtype=np.float64)
 
@@ -151,8 +148,6 @@ def _one_per_place(blobs: Blobs) -> Blobs:
     """Blobs whose centres lie within each other's radius are one blob seen twice (a chain of
     levels broken by a level where it merged with a neighbour): keep the one seen at most
     levels."""
-    from scipy.spatial import cKDTree
-
     if len(blobs) < 2:
         return blobs
     xy, d = blobs.centres, blobs.diameters

@@ -34,13 +34,14 @@ import math
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planarcal import _core
 from planarcal.board import CircleGridBoard
+from planarcal.detect import detect_board
 from planarcal.errors import (
     ArgumentError,
     BoardError,
@@ -60,9 +61,7 @@ from planarcal.homography import (
     reprojection_errors,
     transform_points,
 )
-
-if TYPE_CHECKING:
-    from planarcal.intrinsics import CameraIntrinsics
+from planarcal.intrinsics import CameraIntrinsics, plane_pose, points_at_height
 
 F64 = NDArray[np.float64]
 
@@ -201,8 +200,6 @@ class Calibration:
             )
         size = _image_size(image_size)
         if intrinsics is not None:
-            from planarcal.intrinsics import CameraIntrinsics
-
             if not isinstance(intrinsics, CameraIntrinsics):
                 raise IntrinsicsError(
                     f"intrinsics must be a CameraIntrinsics, got {type(intrinsics).__name__}"
@@ -283,8 +280,6 @@ class Calibration:
     ) -> Calibration:
         """Detects `board` in `image` (array or path) and calibrates from it (``polarity``
         and ``turned`` as in detect_board)."""
-        from planarcal.detect import detect_board
-
         detection = detect_board(image, board, polarity=polarity, turned=turned)  # type: ignore[arg-type]
         return cls.from_detection(
             detection, solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
@@ -526,8 +521,6 @@ class Calibration:
         lifted = world
         factor = np.ones(len(arr))
         if (h != 0).any():
-            from planarcal.intrinsics import points_at_height
-
             lifted = points_at_height(world, self.camera_pose, h)
             factor = 1.0 - h / self.camera_pose.distance_mm
         if not return_std:
@@ -581,7 +574,6 @@ class Calibration:
                 "(planarcal.calibrate_camera from several board views, or "
                 "CameraIntrinsics.load_yaml)"
             )
-        from planarcal.intrinsics import plane_pose
 
         return plane_pose(self.intrinsics.matrix, self._h)
 
@@ -912,8 +904,6 @@ def _scaled_intrinsics(
 ) -> CameraIntrinsics:
     """The same camera at a resolution scaled by `s`: K scaled with the pixels; the distortion
     coefficients act on normalised coordinates and stay; the RMS errors scale."""
-    from planarcal.intrinsics import CameraIntrinsics
-
     per_view = intrinsics.per_view_rms_px
     return CameraIntrinsics(
         _pixel_scaling(s) @ intrinsics.matrix,
@@ -1169,8 +1159,6 @@ def _fit_from_dict(
     params = (0.0, 0.0, 1.0, 0.0, 0.0)  # unused without a lens model
     try:
         if lens == "intrinsics":
-            from planarcal.intrinsics import CameraIntrinsics
-
             intrinsics = CameraIntrinsics.from_dict(intr_data)
         elif lens in LENS_MODELS[1:]:
             if size is None or not isinstance(lens_data, dict):

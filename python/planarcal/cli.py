@@ -7,6 +7,7 @@ or written: one clear line on stderr, no traceback), 2 for a malformed command l
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -14,8 +15,20 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from planarcal import __version__
+from planarcal import __version__, demo, run
+from planarcal.board import LAYOUTS, CircleGridBoard
+from planarcal.calibration import Calibration
+from planarcal.capture import Camera
+from planarcal.detect import detect_board
+from planarcal.drawing import draw_objects, png_bytes
+from planarcal.errors import BoardError, BoardNotFoundError
+from planarcal.files import atomic_write
 from planarcal.homography import SOLVERS
+from planarcal.images import load_image
+from planarcal.intrinsics import CameraIntrinsics, calibrate_camera
+from planarcal.objects import locate_objects
+from planarcal.printable import CHECK_BAR_MM, PrintLayout, pitch_meaning, write_board
+from planarcal.report import summary_json, summary_text, write_detection_failure, write_report
 
 # Errors the commands report in one line; anything else is a bug and keeps its traceback.
 _EXPECTED: tuple[type[BaseException], ...] = (ValueError, OSError)
@@ -26,8 +39,6 @@ def _board_arguments(p: argparse.ArgumentParser, *, for_printing: bool = False) 
     marker unless told otherwise, and a diameter when none is given; a board to be found in
     an image has no marker unless told (detection recognises an enlarged corner dot by
     itself), and its diameter, when none is given, is measured from the image."""
-    from planarcal.board import LAYOUTS
-
     g = p.add_argument_group("board (millimetres; the defaults are the paper's board)")
     g.add_argument("--cols", type=int, default=14, help="dots along a row (default 14)")
     g.add_argument("--rows", type=int, default=10, help="dots down a column (default 10)")
@@ -77,9 +88,7 @@ def _board_arguments(p: argparse.ArgumentParser, *, for_printing: bool = False) 
     )
 
 
-def _board(args: argparse.Namespace) -> Any:
-    from planarcal.board import CircleGridBoard
-
+def _board(args: argparse.Namespace) -> CircleGridBoard:
     return CircleGridBoard(
         cols=args.cols,
         rows=args.rows,
@@ -96,11 +105,6 @@ AUTO_PAGES = ("A4", "A3", "A2", "A1", "A0")
 
 
 def _cmd_board(args: argparse.Namespace) -> int:
-    import dataclasses
-
-    from planarcal.errors import BoardError
-    from planarcal.printable import PrintLayout, pitch_meaning, write_board
-
     board = _board(args)
     if board.diameter is None:
         # A printed dot needs a size: half the neighbour distance, dots as wide as the gaps.
@@ -129,21 +133,9 @@ def _cmd_board(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from planarcal.calibration import Calibration
-    from planarcal.detect import detect_board
-    from planarcal.errors import BoardNotFoundError
-    from planarcal.report import (
-        summary_json,
-        summary_text,
-        write_detection_failure,
-        write_report,
-    )
-
     board = _board(args)
     intrinsics = None
     if args.intrinsics is not None:
-        from planarcal.intrinsics import CameraIntrinsics
-
         intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
     image = _read_image(args)
     try:
@@ -171,8 +163,6 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if args.measured_pitch is not None:
         cal = cal.rescaled(*args.measured_pitch)
     elif args.check_bar is not None:
-        from planarcal.printable import CHECK_BAR_MM
-
         pitch = board.pitch * args.check_bar / CHECK_BAR_MM
         cal = cal.rescaled(pitch)
     saved = cal.save(args.output)
@@ -194,8 +184,6 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _cmd_intrinsics(args: argparse.Namespace) -> int:
-    from planarcal.intrinsics import calibrate_camera
-
     board = _board(args)
     if len(args.images) < 3:
         raise ValueError(
@@ -237,13 +225,10 @@ def _pitches(text: str) -> tuple[float, ...]:
 
 def _read_image(args: argparse.Namespace) -> Any:
     """The calibration image: a file, or the average of frames from a camera source."""
-    from planarcal.images import load_image
-
     if args.camera is None:
         if args.image is None:
             raise ValueError("give an IMAGE file or --camera SOURCE")
         return load_image(args.image)
-    from planarcal.capture import Camera
 
     source: int | str = int(args.camera) if args.camera.isdigit() else args.camera
     with Camera(source) as camera:
@@ -251,12 +236,6 @@ def _read_image(args: argparse.Namespace) -> Any:
 
 
 def _cmd_locate(args: argparse.Namespace) -> int:
-    from planarcal.calibration import Calibration
-    from planarcal.drawing import draw_objects, png_bytes
-    from planarcal.files import atomic_write
-    from planarcal.images import load_image
-    from planarcal.objects import locate_objects
-
     cal = Calibration.load(args.calibration)
     image = load_image(args.image)
     objects = locate_objects(image, cal, height_mm=args.height, min_area_px=args.min_area)
@@ -301,14 +280,10 @@ def _cmd_locate(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from planarcal import run
-
     return run.main(args)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from planarcal import demo
-
     print(demo.run())
     return 0
 

@@ -38,8 +38,10 @@ import dataclasses
 from collections.abc import Iterator
 from typing import Any, Literal
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from planarcal.blobs import Blobs, find_blobs
 from planarcal.board import CircleGridBoard
@@ -75,6 +77,7 @@ PATTERN_RULE = (
     "the grid's own pattern has one reading that is not mirrored (an asymmetric grid with an "
     "odd number of rows): dot 0 is its origin"
 )
+
 AMBIGUOUS_RULE = (
     "no origin marker: dot 0 is the corner dot nearest the image's top-left corner, of the "
     "readings that are not mirrored (the board turned by 180 degrees would look the same)"
@@ -279,8 +282,6 @@ def _candidates(
 def _opencv_grid(u8: NDArray[np.uint8], board: CircleGridBoard) -> Iterator[F64]:
     """OpenCV's findCirclesGrid with its default blob detector, as a user would call it:
     the floor planarcal never falls below."""
-    import cv2
-
     asymmetric = board.layout == "asymmetric"
     flags = cv2.CALIB_CB_ASYMMETRIC_GRID if asymmetric else cv2.CALIB_CB_SYMMETRIC_GRID
     try:
@@ -294,8 +295,6 @@ def _opencv_grid(u8: NDArray[np.uint8], board: CircleGridBoard) -> Iterator[F64]
 
 def _sizes_at(points: F64, blobs: Blobs) -> F64:
     """The diameter of the blob at each point (half the spacing where no blob is)."""
-    from scipy.spatial import cKDTree
-
     spacing = _nearest_distance(points)
     sizes = 0.5 * spacing
     if len(blobs):
@@ -471,8 +470,6 @@ def _predict_from_neighbours(
     """Where each world point in `queries` lies in the image, by a homography through the
     board's dots (world, image) within `steps` steps of it, other than itself and those not
     `known`; NaN where fewer than five are."""
-    from scipy.spatial import cKDTree
-
     reach = (steps + 0.01) * board.neighbour_distance
     near = cKDTree(world).query_ball_point(queries, r=reach)
     out = np.full((len(queries), 2), np.nan)
@@ -494,8 +491,6 @@ def _predict_from_neighbours(
 
 def _nearest_distance(points: F64) -> F64:
     """Each point's distance to its nearest other point."""
-    from scipy.spatial import cKDTree
-
     dist, _ = cKDTree(points).query(points, k=2)
     nearest: F64 = np.asarray(dist[:, 1], dtype=np.float64)
     return nearest
@@ -503,8 +498,6 @@ def _nearest_distance(points: F64) -> F64:
 
 def _around(points: F64, radius: float) -> list[list[int]]:
     """For each point, the other points within `radius`."""
-    from scipy.spatial import cKDTree
-
     near = cKDTree(points).query_ball_point(points, r=radius)
     return [[j for j in js if j != k] for k, js in enumerate(near)]
 

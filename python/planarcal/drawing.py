@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -16,8 +17,6 @@ U8 = NDArray[np.uint8]
 
 def _canvas(image: Any) -> U8:
     """A BGR 8-bit copy of the image to draw on."""
-    import cv2
-
     if (
         isinstance(image, np.ndarray)
         and image.ndim == 3
@@ -83,8 +82,6 @@ def draw_detection(image: Any, detection: Any, *, residual_note: str | None = No
     drawn through them, the board's origin and X / Y directions, the dots the detection
     flags (not refined: a red cross; enlarged: a magenta ring) and the lines of
     `detection_label` (`residual_note`: which model the residual quoted comes from)."""
-    import cv2
-
     canvas = _canvas(image)
     s = _scale(canvas)
     board = detection.board
@@ -154,8 +151,6 @@ def draw_detection(image: Any, detection: Any, *, residual_note: str | None = No
 
 def _mark_flagged_dots(canvas: U8, detection: Any, s: float) -> None:
     """A red cross on each dot not refined, a magenta ring round each enlarged one."""
-    import cv2
-
     pts = detection.image_points
     refined = dot_flags(detection, "refined")
     enlarged = dot_flags(detection, "enlarged")
@@ -192,8 +187,6 @@ def _fitting_lines(lines: list[str], width: int, s: float) -> list[str]:
 
 
 def _text_width(text: str, s: float) -> int:
-    import cv2
-
     (w, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * s, max(1, int(s)))
     return int(w)
 
@@ -201,8 +194,6 @@ def _text_width(text: str, s: float) -> int:
 def draw_objects(image: Any, objects: Sequence[Any]) -> U8:
     """The image with each object's outline, centroid, ID and (when located) its position in
     mm."""
-    import cv2
-
     canvas = _canvas(image)
     s = _scale(canvas)
     for o in objects:
@@ -227,8 +218,6 @@ def draw_objects(image: Any, objects: Sequence[Any]) -> U8:
 
 
 def _label(canvas: U8, text: str, org: tuple[int, int], s: float) -> None:
-    import cv2
-
     scale = 0.5 * s
     thick = max(1, int(s))
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
@@ -241,8 +230,6 @@ def _label(canvas: U8, text: str, org: tuple[int, int], s: float) -> None:
 
 def png_bytes(image: U8) -> bytes:
     """The image encoded as PNG."""
-    import cv2
-
     ok, buf = cv2.imencode(".png", image)
     if not ok:
         raise ValueError("could not encode the image as PNG")

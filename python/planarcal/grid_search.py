@@ -22,8 +22,10 @@ from __future__ import annotations
 import dataclasses
 from collections import deque
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from planarcal.blobs import Blobs
 from planarcal.board import CircleGridBoard
@@ -100,8 +102,6 @@ def outer_ring(board: CircleGridBoard) -> I64:
 def neighbours(centres: F64, k: int = K_NEIGHBOURS) -> tuple[NDArray[np.intp], F64]:
     """The k nearest other blobs of each blob, nearest first: indices (N, k') and distances
     (N, k'), k' = min(k, N - 1)."""
-    from scipy.spatial import cKDTree
-
     k = min(k, len(centres) - 1)
     dist, index = cKDTree(centres).query(centres, k=k + 1)
     # The nearest of each is itself (or a blob at the very same place: drop column 0 all the
@@ -307,8 +307,6 @@ def max_holes(board: CircleGridBoard) -> int:
 def fill_holes(placement: Placement, centres: F64) -> F64:
     """The placement's dot positions (n, 2) px: its blobs' centres, and for each missing dot
     the position a homography through the nearest found dots (in lattice steps) predicts."""
-    import cv2
-
     blob = placement.blob
     found = blob >= 0
     points = np.zeros((len(blob), 2))

@@ -7,6 +7,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -18,8 +19,6 @@ GREY_WEIGHTS_BGR = (0.114, 0.587, 0.299)
 
 def load_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
     """The image at `path` as stored (BGR or grey, 8-bit); ImageError if it cannot be read."""
-    import cv2
-
     p = Path(path)
     if not p.is_file():
         raise ImageError(f"no image file at {str(p)!r}")

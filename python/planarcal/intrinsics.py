@@ -36,6 +36,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -336,8 +337,6 @@ def _unfolded(lens: _Lens, x: F64, y: F64, safe_radius: float) -> BoolArray:
 def _opencv_guess(lens_coeffs: F64, xt: F64, yt: F64) -> tuple[F64, F64]:
     """OpenCV's own iterative undistortion of untilted distorted normalised points (a
     starting point for Newton's method; NaN where it gave nothing finite)."""
-    import cv2
-
     src = np.column_stack([xt, yt]).reshape(-1, 1, 2)
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 30, 1e-12)
     eye = np.eye(3)
@@ -704,8 +703,6 @@ class CameraIntrinsics:
         short anywhere then lacks a required node or ends inside one, and load_yaml refuses
         it instead of reading a shortened number.
         """
-        import cv2
-
         target = Path(path)
         suffix = target.suffix.lower()
         fmt = suffix if suffix in (".xml", ".json") else ".yaml"
@@ -740,8 +737,6 @@ class CameraIntrinsics:
         IntrinsicsError says which: no such file, a file that is not OpenCV's format
         (corrupt or truncated), or the nodes that are missing or malformed.
         """
-        import cv2
-
         p = Path(path)
         try:
             raw = p.read_bytes()
@@ -809,8 +804,6 @@ def _node_number(node: Any, what: str) -> float:
 def _node_matrix(node: Any, what: str) -> F64:
     """A matrix node as float64: an ``!!opencv-matrix``, a map with rows, cols and data
     (ROS's camera_info YAML), or a (nested) sequence of numbers."""
-    import cv2
-
     if node.isMap():
         keys = set(node.keys())
         if "data" not in keys:
@@ -949,8 +942,6 @@ def calibrate_camera(
     The result carries the overall RMS reprojection error (``rms_px``), each view's
     (``per_view_rms_px``) and ``n_views``.
     """
-    import cv2
-
     if isinstance(views, str | os.PathLike | np.ndarray | BoardDetection):
         raise IntrinsicsError(
             "views must be a list of images, paths or board detections (one per view), got a "
@@ -1101,8 +1092,6 @@ def _focal_profile_rel_std(
     cannot tell focal lengths apart refit as well at either (Delta chi^2 ~ 0: infinite). The
     refits start from the distortion rescaled along the exact degeneracy of a fronto-parallel
     board (k_i by s^2i, p_i by s), so they find it where it exists."""
-    import cv2
-
     n_obs = 2 * sum(len(p) for p in image_points)
     sse = rms * rms * n_obs
     sigma2 = sse / max(n_obs - n_params, 1)
@@ -1205,8 +1194,6 @@ class PlanePoseEstimate:
 
     def rvec_tvec(self) -> tuple[F64, F64]:
         """OpenCV's (rvec, tvec), each (3, 1), for cv2.projectPoints and the like."""
-        import cv2
-
         rvec, _ = cv2.Rodrigues(np.array(self.rotation))
         return np.asarray(rvec, np.float64).reshape(3, 1), np.array(self.translation).reshape(3, 1)
 

@@ -12,11 +12,13 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal.errors import ImageError
+from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
 
 if TYPE_CHECKING:
@@ -122,8 +124,6 @@ def _detect(
 ) -> Found:
     """detect_objects' work, its objects as arrays (``outlines=False``: without their
     outlines, an empty list)."""
-    import cv2
-
     u8 = _grey_u8(image)
     h, w = u8.shape
     if not (blur_sigma >= 0):
@@ -175,8 +175,6 @@ _CLOSE_KERNEL = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)
 def _grey_u8(image: Any) -> NDArray[np.uint8]:
     """The image as 8-bit grey (the paper's Eq. 9 for BGR): camera frames (uint8) go straight
     through OpenCV; anything else through as_grey's checks and conversions."""
-    import cv2
-
     if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.size:
         if image.ndim == 2:
             return image
@@ -223,8 +221,6 @@ def locate_objects(
 def board_region_px(detection: Any, margin_pitch: float = 0.75) -> F64:
     """The board's region in the image, for exclude_polygons: the dot grid's outline pushed
     out by `margin_pitch` dot pitches (through the board's own homography)."""
-    from planarcal.homography import estimate_homography, transform_points
-
     board = detection.board
     m = margin_pitch * board.pitch
     w, h = (board.cols - 1) * board.pitch, (board.rows - 1) * board.pitch

@@ -46,6 +46,7 @@ from planarcal.drawing import (
 )
 from planarcal.errors import HomographyError, IntrinsicsError, LensModelError
 from planarcal.files import atomic_write
+from planarcal.images import as_grey
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -455,7 +456,7 @@ def _flag_column(detection: Any, name: str, n: int) -> list[str]:
 def deviation_figure(cal: Calibration) -> bytes:
     """The paper's Figure 5 (dX and dY per point, mm) and a vector field of the deviations
     over the board, as PNG bytes."""
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
     dev = cal.deviations_mm
     loo = cal.loo_deviations_mm
@@ -515,7 +516,7 @@ or past the plane's horizon)."""
 def _figure(width: float, height: float) -> Figure:
     # The OO API alone: savefig renders through Agg without a backend being chosen, and
     # choosing one (matplotlib.use) would change the backend of the user's own plots.
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
     return Figure(figsize=(width, height), dpi=100, layout="constrained")
 
@@ -623,7 +624,7 @@ def _mappable(cal: Calibration, px: F64) -> NDArray[np.bool_]:
     elif cal.intrinsics is not None:
         fold = _intrinsics_fold(cal.intrinsics)
         if math.isfinite(fold):
-            from matplotlib.path import Path as Outline
+            from matplotlib.path import Path as Outline  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
             # The pixels the lens shows the unfolded directions at: inside the fold's image
             # (less a margin: at the fold itself the mapping's slope goes to zero).
@@ -690,8 +691,6 @@ def _draw_frame(ax: Axes, cal: Calibration, image: Any) -> None:
     """Axes in image pixels (y down), the picture faintly behind when given, the frame."""
     left, right, bottom, top = _frame_px(cal)
     if image is not None and cal.image_size is not None:
-        from planarcal.images import as_grey
-
         grey = as_grey(image)
         if grey.shape[::-1] == tuple(cal.image_size):
             ax.imshow(grey, cmap="gray", alpha=0.35, extent=(left, right, bottom, top))
@@ -964,8 +963,8 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     lines at multiples of the uncertainty at the board's centre and the line where it
     doubles marked; as PNG bytes. Pixels with no place on the plane (beyond the lens
     model's valid radius, past the horizon) are left blank."""
-    from matplotlib.colors import LogNorm, Normalize
-    from matplotlib.tri import Triangulation
+    from matplotlib.colors import LogNorm, Normalize  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
+    from matplotlib.tri import Triangulation  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
     fig = _figure(11, 8.5)
     ax = fig.add_subplot()
@@ -1026,7 +1025,7 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     pc = ax.tripcolor(tri, std, shading="gouraud", cmap="viridis", norm=norm)
     bar = fig.colorbar(pc, ax=ax, label="1-sigma position uncertainty (mm)", shrink=0.85)
     if isinstance(norm, LogNorm):
-        from matplotlib.ticker import FuncFormatter, LogLocator
+        from matplotlib.ticker import FuncFormatter, LogLocator  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
         bar.ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
         bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
@@ -1166,9 +1165,9 @@ def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> byte
 
 def _draw_seen_blobs(ax: Axes, blobs: Any) -> None:
     """Each polarity's blobs as circles of their diameter, one colour per polarity."""
-    from matplotlib.collections import PatchCollection
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Circle
+    from matplotlib.collections import PatchCollection  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
+    from matplotlib.lines import Line2D  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
+    from matplotlib.patches import Circle  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
     for seen in blobs:
         colour = _BLOB_COLOURS.get(seen.polarity, "tab:gray")

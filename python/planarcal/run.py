@@ -24,6 +24,8 @@ import time
 from collections.abc import Iterator
 from typing import Any, TextIO
 
+from planarcal.calibration import Calibration
+from planarcal.outputs import open_output
 from planarcal.tracker import LoopStats, Tracker
 
 # Redraw the progress line at most this often, s.
@@ -139,9 +141,6 @@ def stage_report(stats: LoopStats, serialise_s: float) -> str:
 
 
 def main(args: argparse.Namespace) -> int:
-    from planarcal.calibration import Calibration
-    from planarcal.outputs import open_output
-
     # The tracker's fault log (a source lost and reopened, frames skipped) goes to stderr, like
     # the summary, unless the application set up logging itself.
     log = logging.getLogger("planarcal")
