@@ -40,6 +40,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planarcal import arguments
 from planarcal.board import CircleGridBoard
 from planarcal.detect import BoardDetection, detect_board
 from planarcal.errors import BoardNotFoundError, ImageError, IntrinsicsError
@@ -173,22 +174,6 @@ def _image_size(value: Any) -> tuple[int, int]:
     if len(items) != 2:
         raise IntrinsicsError(f"image_size must be (width, height) in pixels, got {value!r}")
     return (_whole("image width", items[0], 1), _whole("image height", items[1], 1))
-
-
-def _as_points(value: ArrayLike, name: str) -> tuple[F64, tuple[int, ...]]:
-    """value as finite (N, 2) float64 points plus the leading shape to give results back in."""
-    try:
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise IntrinsicsError(f"{name} must be an array of (x, y) points") from None
-    if a.ndim == 0 or a.shape[-1] != 2:
-        raise IntrinsicsError(f"{name} must have shape (..., 2), got {a.shape}")
-    flat = a.reshape(-1, 2)
-    bad = np.flatnonzero(~np.isfinite(flat).all(axis=1))
-    if bad.size:
-        k = int(bad[0])
-        raise IntrinsicsError(f"{name}: point {k} is not finite: {flat[k].tolist()}")
-    return flat, a.shape[:-1]
 
 
 # ------------------------------------------------------------------------------------------
@@ -553,7 +538,7 @@ class CameraIntrinsics:
         distorted model has either no preimage or a spurious one, and any answer would be
         wrong.
         """
-        flat, shape = _as_points(px, "px")
+        flat, shape = arguments.points("px", px, IntrinsicsError)
         ux, uy, ok = self._undistort(flat)
         if not ok.all():
             k = int(np.flatnonzero(~ok)[0])
@@ -599,7 +584,7 @@ class CameraIntrinsics:
         them (..., 2): OpenCV's forward model (as cv2.projectPoints of the normalised rays
         K^-1 p, but with K's skew honoured). Points beyond the model's fold-over (see
         :meth:`undistort_points`) raise IntrinsicsError naming the first."""
-        flat, shape = _as_points(ideal_px, "ideal_px")
+        flat, shape = arguments.points("ideal_px", ideal_px, IntrinsicsError)
         lens = self._model
         x, y = self._normalise(flat)
         if lens.identity or flat.shape[0] == 0:
@@ -1278,7 +1263,7 @@ def points_at_height(
         raise IntrinsicsError(
             f"pose_estimate must be a PlanePoseEstimate, got {type(pose_estimate).__name__}"
         )
-    flat, shape = _as_points(world_xy, "world_xy")
+    flat, shape = arguments.points("world_xy", world_xy, IntrinsicsError)
     try:
         h = np.asarray(height_mm, dtype=np.float64)
     except (TypeError, ValueError):

@@ -122,6 +122,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planarcal import arguments
 from planarcal.board import CircleGridBoard
 from planarcal.errors import BoardError, ImageError
 
@@ -180,49 +181,6 @@ _NUT_HOLE = 0.85
 _WASHER_HOLE = 1.05
 
 
-def _real(name: str, value: object, exc: type[ValueError] = ValueError) -> float:
-    """value as a finite float, else exc naming it."""
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise exc(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise exc(f"{name} must be finite, got {value!r}")
-    return v
-
-
-def _positive(name: str, value: object, exc: type[ValueError] = ValueError) -> float:
-    v = _real(name, value, exc)
-    if v <= 0:
-        raise exc(f"{name} must be positive, got {value!r}")
-    return v
-
-
-def _pair(name: str, value: object, exc: type[ValueError] = ValueError) -> tuple[float, float]:
-    """value as a pair of finite floats (x, y), else exc naming it."""
-    try:
-        items = list(cast("Iterable[object]", value))
-    except TypeError:
-        items = []
-    if len(items) != 2:
-        raise exc(f"{name} must be a pair (x, y), got {value!r}")
-    return (_real(f"{name}[0]", items[0], exc), _real(f"{name}[1]", items[1], exc))
-
-
-def _points(name: str, value: ArrayLike) -> tuple[F64, tuple[int, ...]]:
-    """value as (N, 2) float64 plus the leading shape to give results back in."""
-    try:
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an array of (x, y) points") from None
-    if a.ndim == 0 or a.shape[-1] != 2:
-        raise ValueError(f"{name} must have shape (..., 2), got {a.shape}")
-    flat = a.reshape(-1, 2)
-    bad = np.flatnonzero(~np.isfinite(flat).all(axis=1))
-    if bad.size:
-        raise ValueError(f"{name}: point {int(bad[0])} is not finite: {flat[bad[0]].tolist()}")
-    return flat, a.shape[:-1]
-
-
 def _heights(value: ArrayLike, shape: tuple[int, ...]) -> F64 | None:
     """Heights above the table (mm) for points of leading shape ``shape``, flat (N,); None
     when they are all zero (the plane itself, computed as before heights existed)."""
@@ -273,21 +231,21 @@ class PlanePose:
     look_at_mm: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
-        d = _real("distance_mm", self.distance_mm)
+        d = arguments.real("distance_mm", self.distance_mm)
         if d <= 0:
             raise ValueError(
                 f"distance_mm must be positive, got {self.distance_mm!r}: a plane at a "
                 "distance <= 0 is at or behind the camera"
             )
-        tilt = _real("tilt_deg", self.tilt_deg)
+        tilt = arguments.real("tilt_deg", self.tilt_deg)
         if not abs(tilt) < 90.0:
             raise ValueError(
                 f"tilt_deg must be between -90 and 90 (exclusive), got {self.tilt_deg!r}: "
                 "at 90 degrees or more the camera sees the plane edge-on or from behind"
             )
-        _real("tilt_axis_deg", self.tilt_axis_deg)
-        _real("roll_deg", self.roll_deg)
-        object.__setattr__(self, "look_at_mm", _pair("look_at_mm", self.look_at_mm))
+        arguments.real("tilt_axis_deg", self.tilt_axis_deg)
+        arguments.real("roll_deg", self.roll_deg)
+        object.__setattr__(self, "look_at_mm", arguments.pair("look_at_mm", self.look_at_mm))
 
     def rotation(self) -> F64:
         """R (3 x 3): table coordinates to camera coordinates, X_cam = R X_table + t."""
@@ -343,10 +301,10 @@ class CameraModel:
             if not 2 <= value <= 65536:
                 raise ImageError(f"{name} must be 2 to 65536 pixels, got {value}")
             object.__setattr__(self, name, int(value))
-        _positive("focal_px", self.focal_px)
+        arguments.positive("focal_px", self.focal_px)
         if self.principal is not None:
-            object.__setattr__(self, "principal", _pair("principal", self.principal))
-        k1, k2 = _real("k1", self.k1), _real("k2", self.k2)
+            object.__setattr__(self, "principal", arguments.pair("principal", self.principal))
+        k1, k2 = arguments.real("k1", self.k1), arguments.real("k2", self.k2)
         if k1 or k2:
             r_corner = self._corner_radius()
             r = np.linspace(0.0, 5.0 * r_corner + 1.0, 200_001)
@@ -391,7 +349,7 @@ class CameraModel:
 
     def distort(self, normalized: ArrayLike) -> F64:
         """Undistorted normalised coordinates (..., 2) to distorted ones."""
-        p, shape = _points("normalized", normalized)
+        p, shape = arguments.points("normalized", normalized)
         r2 = np.sum(p * p, axis=1, keepdims=True)
         out = p * (1.0 + r2 * (self.k1 + self.k2 * r2))
         return np.asarray(out.reshape(*shape, 2), dtype=np.float64)
@@ -417,7 +375,7 @@ class CameraModel:
     def undistort(self, normalized: ArrayLike) -> F64:
         """Distorted normalised coordinates (..., 2) to undistorted ones (exact inverse of
         :meth:`distort` within the image's radius)."""
-        p, shape = _points("normalized", normalized)
+        p, shape = arguments.points("normalized", normalized)
         s = self._undistort_scale(np.sum(p * p, axis=1))
         return (p * s[:, None]).reshape(*shape, 2)
 
@@ -443,7 +401,7 @@ class CameraModel:
         camera), as for ``cv2.projectPoints``. Raises ValueError for a point at or behind the
         camera's plane (it has no image).
         """
-        p, shape = _points("world_xy", world_xy)
+        p, shape = arguments.points("world_xy", world_xy)
         heights = _heights(height_mm, shape)
         r, t = pose.rotation(), pose.translation()
         cam = p @ r[:, :2].T + t
@@ -466,7 +424,7 @@ class CameraModel:
     def image_to_plane(self, pixels: ArrayLike, pose: PlanePose) -> F64:
         """Pixels (..., 2) to the table points (mm) they see: undistort, back-project the
         ray, intersect it with the plane (exact). ValueError if a ray misses the plane."""
-        p, shape = _points("pixels", pixels)
+        p, shape = arguments.points("pixels", pixels)
         x, y, ok = self._rays_to_plane(
             (p[:, 0] - self.cx) / self.focal_px, (p[:, 1] - self.cy) / self.focal_px, pose
         )
@@ -878,18 +836,18 @@ class SceneObject:
     def __post_init__(self) -> None:
         if self.kind not in OBJECT_KINDS:
             raise ValueError(f"kind must be one of {', '.join(OBJECT_KINDS)}; got {self.kind!r}")
-        object.__setattr__(self, "position_mm", _pair("position_mm", self.position_mm))
-        _real("angle_deg", self.angle_deg)
-        _positive("size_mm", self.size_mm)
+        object.__setattr__(self, "position_mm", arguments.pair("position_mm", self.position_mm))
+        arguments.real("angle_deg", self.angle_deg)
+        arguments.positive("size_mm", self.size_mm)
         if self.length_mm is not None:
             if self.kind not in ("bolt", "rectangle"):
                 raise ValueError(f"length_mm applies to bolts and rectangles, not a {self.kind}")
-            _positive("length_mm", self.length_mm)
+            arguments.positive("length_mm", self.length_mm)
         if self.grey is not None:
-            g = _real("grey", self.grey)
+            g = arguments.real("grey", self.grey)
             if not 0.0 <= g <= 255.0:
                 raise ValueError(f"grey must be a grey level 0-255, got {self.grey!r}")
-        height = _real("height_mm", self.height_mm)
+        height = arguments.real("height_mm", self.height_mm)
         if height < 0.0:
             raise ValueError(
                 f"height_mm must be >= 0 (mm above the table; 0 for a flat object), got "
@@ -1063,7 +1021,7 @@ class RenderedScene:
         """Whether each dot lies wholly inside the image, ``margin_px`` from its border."""
         if self.board is None:
             return np.zeros(0, dtype=bool)
-        m = _real("margin_px", margin_px)
+        m = arguments.real("margin_px", margin_px)
         a = 2.0 * np.pi * np.arange(64) / 64
         ring = np.column_stack([np.cos(a), np.sin(a)])
         pts = self.board.world_points()
@@ -1585,9 +1543,9 @@ def render_scene(
         raise ValueError(f"camera must be a CameraModel, got {type(camera).__name__}")
     if board is not None and not isinstance(board, CircleGridBoard):
         raise BoardError(f"board must be a CircleGridBoard or None, got {type(board).__name__}")
-    origin = _pair("board_origin_mm", board_origin_mm, BoardError)
-    angle = _real("board_angle_deg", board_angle_deg, BoardError)
-    margin = _real("paper_margin_mm", paper_margin_mm, BoardError)
+    origin = arguments.pair("board_origin_mm", board_origin_mm, BoardError)
+    angle = arguments.real("board_angle_deg", board_angle_deg, BoardError)
+    margin = arguments.real("paper_margin_mm", paper_margin_mm, BoardError)
     if margin < 0:
         raise BoardError(f"paper_margin_mm must be >= 0, got {paper_margin_mm!r}")
     diameters = None if board is None else _dot_diameters(board, enlarged_dots)
@@ -1613,7 +1571,7 @@ def render_scene(
         if o.height_mm != 0.0:
             raise ValueError(f"marks[{i}] must be flat (height_mm 0): marks are printed")
     tones = {
-        name: _real(name, value, ImageError)
+        name: arguments.real(name, value, ImageError)
         for name, value in (
             ("table_grey", table_grey),
             ("paper_grey", paper_grey),
@@ -1624,18 +1582,18 @@ def render_scene(
     tones["side_grey"] = (
         _SIDE_SHADE * tones["table_grey"]
         if side_grey is None
-        else _real("side_grey", side_grey, ImageError)
+        else arguments.real("side_grey", side_grey, ImageError)
     )
     for name, value in tones.items():
         if not 0.0 <= value <= 255.0:
             raise ImageError(f"{name} must be a grey level 0-255, got {value!r}")
-    blur = _real("blur_sigma_px", blur_sigma_px, ImageError)
-    noise = _real("noise_sigma", noise_sigma, ImageError)
-    gradient = _real("lighting_gradient", lighting_gradient, ImageError)
-    light_angle = _real("lighting_angle_deg", lighting_angle_deg, ImageError)
-    vig = _real("vignette", vignette, ImageError)
+    blur = arguments.real("blur_sigma_px", blur_sigma_px, ImageError)
+    noise = arguments.real("noise_sigma", noise_sigma, ImageError)
+    gradient = arguments.real("lighting_gradient", lighting_gradient, ImageError)
+    light_angle = arguments.real("lighting_angle_deg", lighting_angle_deg, ImageError)
+    vig = arguments.real("vignette", vignette, ImageError)
     textures = {
-        name: _real(name, value, ImageError)
+        name: arguments.real(name, value, ImageError)
         for name, value in (("table_texture", table_texture), ("paper_texture", paper_texture))
     }
     for name, value in textures.items():
@@ -1886,7 +1844,7 @@ def _dot_diameters(board: CircleGridBoard, enlarged: Mapping[int, float] | None)
             raise BoardError(
                 f"enlarged_dots: dot {index} does not exist (the board has {board.n_points})"
             )
-        d = _real(f"enlarged_dots[{index}]", value, BoardError)
+        d = arguments.real(f"enlarged_dots[{index}]", value, BoardError)
         if not nominal <= d <= limit:
             raise BoardError(
                 f"enlarged_dots[{index}] = {value!r} mm: an enlarged dot must be at least the "
@@ -2002,7 +1960,7 @@ def printed_marks(
             raise ValueError(f"kinds must be among {', '.join(MARK_KINDS)}; got {kind!r}")
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ValueError(f"seed must be a non-negative whole number, got {seed!r}")
-    margin = _real("paper_margin_mm", paper_margin_mm, BoardError)
+    margin = arguments.real("paper_margin_mm", paper_margin_mm, BoardError)
     outside = {"numbers", "arrows", "text"} & set(wanted)
     if outside and margin <= 0.0:
         raise BoardError(f"{', '.join(sorted(outside))} need a paper margin, got {margin!r}")
@@ -2716,8 +2674,8 @@ def random_paper_scene(
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ImageError(f"seed must be a non-negative whole number, got {seed!r}")
     rng = np.random.default_rng(int(seed))
-    scale = _positive("px_per_mm", px_per_mm)
-    tilt = _real("max_tilt_deg", max_tilt_deg)
+    scale = arguments.positive("px_per_mm", px_per_mm)
+    tilt = arguments.real("max_tilt_deg", max_tilt_deg)
     if not 0.0 <= tilt <= 60.0:
         raise ValueError(f"max_tilt_deg must be 0 to 60, got {max_tilt_deg!r}")
     board = PAPER_BOARD
