@@ -30,6 +30,7 @@ mod estimate;
 mod image;
 mod leave_one_out;
 mod lens;
+mod lm;
 mod mapper;
 mod normalize;
 mod orientation;

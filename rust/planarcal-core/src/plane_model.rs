@@ -8,7 +8,8 @@
 //!
 //! The parameters: H in normalised coordinates (Hartley's similarity on each side) with
 //! h33 = 1 there, k1, k2 about the centre, and the centre's offset from the image centre in
-//! units of the lens scale, so every parameter is of order one.
+//! units of the lens scale, so every parameter is of order one. The loop is `lm`'s; this
+//! module gives it the normal equations, with the fixed parameters masked out.
 
 use nalgebra::{Matrix2, Matrix3, SMatrix, SVector};
 
@@ -16,6 +17,7 @@ use crate::correspondences::Correspondences;
 use crate::error::HomographyError;
 use crate::estimate::{estimate, Solver};
 use crate::lens::{LensError, RadialLens};
+use crate::lm::{self, Damping, LeastSquares, Options};
 use crate::normalize::Normalization;
 use crate::orientation::orient_and_scale;
 use crate::Point;
@@ -27,7 +29,27 @@ pub type VecP = SVector<f64, P>;
 /// d(image point) / d(parameters): 2 x P.
 pub type JacP = SMatrix<f64, 2, P>;
 
-const MAX_ITERATIONS: usize = 200;
+/// The loop's settings: Marquardt's tenfold damping steps, which the leave-one-out refits
+/// (started at the full fit) also run.
+const OPTIONS: Options = Options {
+    max_iterations: 200,
+    damping: Damping::Factors {
+        initial: 1e-4,
+        up: 10.0,
+        down: 0.1,
+        min: 1e-12,
+    },
+    max_damping: 1e16,
+    diagonal_floor: 1e-30,
+    cost_floor: f64::NEG_INFINITY,
+    gain_tol: 1e-14,
+    step_tol: 1e-13,
+    // Every parameter is of order one (see above): 1 is where |theta| counts as zero.
+    step_offset: 1.0,
+    // From exact data without distortion the first step is rounding, but taking it moves
+    // k1, k2 off zero, where the centre has no gradient and J^T J would stay singular.
+    try_small_steps: true,
+};
 
 /// Which lens parameters are fitted with H.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -270,13 +292,8 @@ impl Params {
     }
 }
 
-/// The normal equations of the fit at some parameters.
-pub struct Normal {
-    pub jtj: MatP,
-    pub jtr: VecP,
-    /// Sum of squared residuals, px^2.
-    pub cost: f64,
-}
+/// The normal equations of the fit at some parameters; the cost is in px^2.
+pub type Normal = lm::Normal<P>;
 
 /// Sums J^T J, J^T r and the cost over the points, skipping point `skip`; None when a point
 /// falls behind the camera.
@@ -496,9 +513,39 @@ pub struct Solved {
     pub params: Params,
     pub cost: f64,
     pub iterations: usize,
-    /// J^T J at the solution (all parameters; `inverse_normal` restricts it to the free).
+    /// J^T J at the solution over the free parameters (`masked`).
     pub jtj: MatP,
     pub skipped: Option<usize>,
+}
+
+/// The fit's residuals as `lm` sees them: over the free parameters, without point `skip`.
+struct Residuals<'a> {
+    frame: Frame,
+    world: &'a [Point],
+    image: &'a [Point],
+    free: LensParams,
+    skip: Option<usize>,
+}
+
+impl LeastSquares<P> for Residuals<'_> {
+    fn normal_equations(&self, theta: &VecP) -> Option<Normal> {
+        let params = Params {
+            theta: *theta,
+            frame: self.frame,
+        };
+        let n = normal_equations(&params, self.world, self.image, self.skip)?;
+        let mut jtr = n.jtr;
+        for j in 0..P {
+            if !self.free.free(j) {
+                jtr[j] = 0.0;
+            }
+        }
+        Some(Normal {
+            jtj: masked(&n.jtj, self.free),
+            jtr,
+            cost: n.cost,
+        })
+    }
 }
 
 /// Levenberg-Marquardt from `start` over the free parameters, without point `skip`.
@@ -509,71 +556,29 @@ pub fn solve(
     free: LensParams,
     skip: Option<usize>,
 ) -> Result<Solved, LensError> {
-    let behind = || HomographyError::MixedOrientation {
-        index: 0,
-        behind: 1,
-        total: world.len(),
+    let problem = Residuals {
+        frame: start.frame,
+        world,
+        image,
+        free,
+        skip,
     };
-    let mut params = start;
-    let mut normal = normal_equations(&params, world, image, skip).ok_or_else(behind)?;
-    let mut lambda = 1e-4;
-    let mut iterations = 0;
-    while iterations < MAX_ITERATIONS {
-        iterations += 1;
-        let a = masked(&normal.jtj, free);
-        let mut step_taken = false;
-        // Marquardt's damping scales with each parameter's own curvature.
-        while lambda < 1e16 {
-            let mut damped = a;
-            for j in 0..P {
-                damped[(j, j)] += lambda * a[(j, j)].max(1e-30);
-            }
-            let mut rhs = -normal.jtr;
-            for j in 0..P {
-                if !free.free(j) {
-                    rhs[j] = 0.0;
-                }
-            }
-            let Some(chol) = damped.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let delta = chol.solve(&rhs);
-            let mut trial = params;
-            trial.theta += delta;
-            match normal_equations(&trial, world, image, skip) {
-                Some(n) if n.cost < normal.cost => {
-                    let gain = normal.cost - n.cost;
-                    let small_step = delta.norm() <= 1e-13 * (1.0 + params.theta.norm());
-                    params = trial;
-                    let converged = gain <= 1e-14 * normal.cost || small_step;
-                    normal = n;
-                    lambda = (lambda * 0.1).max(1e-12);
-                    step_taken = true;
-                    if converged {
-                        return Ok(solved(params, normal, iterations, skip));
-                    }
-                    break;
-                }
-                _ => lambda *= 10.0,
-            }
-        }
-        if !step_taken {
-            // No step lowers the cost: the minimum, to rounding.
-            break;
-        }
-    }
-    Ok(solved(params, normal, iterations, skip))
-}
-
-fn solved(params: Params, normal: Normal, iterations: usize, skip: Option<usize>) -> Solved {
-    Solved {
-        params,
-        cost: normal.cost,
-        iterations,
-        jtj: normal.jtj,
+    let fit =
+        lm::minimize(&problem, start.theta, &OPTIONS).ok_or(HomographyError::MixedOrientation {
+            index: 0,
+            behind: 1,
+            total: world.len(),
+        })?;
+    Ok(Solved {
+        params: Params {
+            theta: fit.x,
+            frame: start.frame,
+        },
+        cost: fit.at.cost,
+        iterations: fit.iterations,
+        jtj: fit.at.jtj,
         skipped: skip,
-    }
+    })
 }
 
 #[cfg(test)]

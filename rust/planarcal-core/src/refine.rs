@@ -3,16 +3,33 @@
 //! the maximum-likelihood ("gold standard") homography for Gaussian noise in the destination.
 //! It runs in normalised coordinates (a similarity on each side, so the minimiser is the same)
 //! with h33 fixed to 1 there: h33 is then w at the source centroid, which is safely away from
-//! zero for any homography that keeps the points in front.
+//! zero for any homography that keeps the points in front. The loop is `lm`'s; this module
+//! gives it the normal equations, summed in one vectorised pass over the points.
 
 use nalgebra::{Matrix3, SMatrix, SVector};
 
 use crate::correspondences::Correspondences;
+use crate::lm::{self, Damping, LeastSquares, Normal, Options};
 
 type Mat8 = SMatrix<f64, 8, 8>;
 type Vec8 = SVector<f64, 8>;
 
 const MAX_ITERATIONS: usize = 100;
+
+/// The loop's settings; `cost_floor` is set per problem.
+const OPTIONS: Options = Options {
+    max_iterations: MAX_ITERATIONS,
+    // The linear estimate is a good start: begin close to Gauss-Newton (Nielsen's tau = 1e-6).
+    damping: Damping::Nielsen { tau: 1e-6 },
+    max_damping: 1e30,
+    diagonal_floor: 1e-300,
+    cost_floor: 0.0,
+    gain_tol: 1e-13,
+    // A step this small changes H below rounding that matters: stop without trying it.
+    step_tol: 1e-13,
+    step_offset: 1e-13,
+    try_small_steps: false,
+};
 
 /// What the refinement did, for diagnostics and tests.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,12 +40,6 @@ pub struct RefineReport {
     pub initial_cost: f64,
     /// See `initial_cost`.
     pub final_cost: f64,
-}
-
-struct Evaluation {
-    cost: f64,
-    jtj: Mat8,
-    jtr: Vec8,
 }
 
 /// Sums a point contributes to the normal equations, weighted by a = 1/w^2: p p^T (XX, XY,
@@ -123,7 +134,7 @@ unsafe fn accumulate_avx2(pts: &[[f64; 4]], p: &Vec8) -> Option<[f64; SUMS]> {
 /// Cost, J^T J and J^T r at p = (h11 .. h32) with h33 = 1; None if a point reaches w <= 0.
 /// `pts` holds the normalised pairs (X, Y, x, y). Runs the AVX2 build where the CPU has it
 /// (no FMA: both builds round identically).
-fn evaluate(pts: &[[f64; 4]], p: &Vec8) -> Option<Evaluation> {
+fn evaluate(pts: &[[f64; 4]], p: &Vec8) -> Option<Normal<8>> {
     #[cfg(target_arch = "x86_64")]
     let sums = if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2, checked just above.
@@ -157,7 +168,18 @@ fn evaluate(pts: &[[f64; 4]], p: &Vec8) -> Option<Evaluation> {
     jtj[(7, 6)] = c_xy;
     jtj[(7, 7)] = c_yy;
     let jtr = Vec8::from_column_slice(&[g1x, g1y, g1, g2x, g2y, g2, g3x, g3y]);
-    Some(Evaluation { cost, jtj, jtr })
+    Some(Normal { jtj, jtr, cost })
+}
+
+/// The transfer error over the normalised pairs (X, Y, x, y).
+struct Transfer {
+    pts: Vec<[f64; 4]>,
+}
+
+impl LeastSquares<8> for Transfer {
+    fn normal_equations(&self, p: &Vec8) -> Option<Normal<8>> {
+        evaluate(&self.pts, p)
+    }
 }
 
 fn to_params(hn: &Matrix3<f64>) -> Option<Vec8> {
@@ -188,91 +210,39 @@ fn from_params(p: &Vec8) -> Matrix3<f64> {
 /// (a point behind the horizon), the start comes back unchanged.
 pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f64>, RefineReport) {
     let to_caller_units = 1.0 / (c.dst_norm.scale * c.dst_norm.scale);
-    let unchanged = |iterations| {
+    let unchanged = || {
         (
             *hn,
             RefineReport {
-                iterations,
+                iterations: 0,
                 initial_cost: f64::NAN,
                 final_cost: f64::NAN,
             },
         )
     };
-    let Some(mut p) = to_params(hn) else {
-        return unchanged(0);
+    let Some(p) = to_params(hn) else {
+        return unchanged();
     };
-    let pts: Vec<[f64; 4]> = c
-        .normalized_pairs()
-        .map(|([sx, sy], [dx, dy])| [sx, sy, dx, dy])
-        .collect();
-    let Some(mut cur) = evaluate(&pts, &p) else {
-        return unchanged(0);
+    let problem = Transfer {
+        pts: c
+            .normalized_pairs()
+            .map(|([sx, sy], [dx, dy])| [sx, sy, dx, dy])
+            .collect(),
     };
-    let initial_cost = cur.cost;
-    // A cost this small is rounding: the data are exact.
-    let floor = 1e-28 * c.len() as f64;
-    // The linear estimate is a good start: begin close to Gauss-Newton (Nielsen's tau = 1e-6).
-    let mut mu = 1e-6 * (0..8).map(|k| cur.jtj[(k, k)]).fold(0.0, f64::max);
-    let mut nu = 2.0;
-    let mut iterations = 0;
-    'outer: while iterations < MAX_ITERATIONS && cur.cost > floor {
-        iterations += 1;
-        loop {
-            let mut a = cur.jtj;
-            for k in 0..8 {
-                a[(k, k)] += mu * cur.jtj[(k, k)].max(1e-300);
-            }
-            let Some(chol) = a.cholesky() else {
-                mu *= nu;
-                nu *= 2.0;
-                if mu > 1e30 {
-                    break 'outer;
-                }
-                continue;
-            };
-            let step = chol.solve(&(-cur.jtr));
-            // A step this small changes H below rounding that matters: converged.
-            if step.norm() <= 1e-13 * (p.norm() + 1e-13) {
-                break 'outer;
-            }
-            let trial_p = p + step;
-            // Predicted reduction of the (doubled) cost by the damped model.
-            let mut damped = step;
-            for k in 0..8 {
-                damped[k] *= mu * cur.jtj[(k, k)];
-            }
-            let predicted = step.dot(&(damped - cur.jtr));
-            let trial = evaluate(&pts, &trial_p).filter(|t| t.cost.is_finite());
-            match trial {
-                Some(t) if t.cost < cur.cost => {
-                    let rho = (cur.cost - t.cost) / predicted.max(f64::MIN_POSITIVE);
-                    mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
-                    nu = 2.0;
-                    let gain = cur.cost - t.cost;
-                    p = trial_p;
-                    let done = gain <= 1e-13 * cur.cost;
-                    cur = t;
-                    if done {
-                        break 'outer;
-                    }
-                    break;
-                }
-                _ => {
-                    mu *= nu;
-                    nu *= 2.0;
-                    if mu > 1e30 {
-                        break 'outer;
-                    }
-                }
-            }
-        }
-    }
+    let options = Options {
+        // A cost this small is rounding: the data are exact.
+        cost_floor: 1e-28 * c.len() as f64,
+        ..OPTIONS
+    };
+    let Some(fit) = lm::minimize(&problem, p, &options) else {
+        return unchanged();
+    };
     (
-        from_params(&p),
+        from_params(&fit.x),
         RefineReport {
-            iterations,
-            initial_cost: initial_cost * to_caller_units,
-            final_cost: cur.cost * to_caller_units,
+            iterations: fit.iterations,
+            initial_cost: fit.initial_cost * to_caller_units,
+            final_cost: fit.at.cost * to_caller_units,
         },
     )
 }
