@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 import cv2
 import numpy as np
@@ -19,6 +20,10 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 settings.load_profile("default")
+
+# The type of pytest's record_property fixture (a property's name and value), which pytest
+# does not export under a name.
+RecordProperty: TypeAlias = Callable[[str, object], None]
 
 # The project's shared material (the paper's tables, real photographs): ../shared beside the
 # checkout, or wherever PLANARCAL_SHARED points. The package itself never needs it.

@@ -23,7 +23,7 @@ def examples(n: int) -> int:
 def project(h: F64, points: F64) -> F64:
     """Points through H, plain NumPy, no checks."""
     v = np.c_[points, np.ones(len(points))] @ h.T
-    return v[:, :2] / v[:, 2:]
+    return np.asarray(v[:, :2] / v[:, 2:], dtype=np.float64)
 
 
 def unit_homography(rng: np.random.Generator) -> F64:
@@ -31,8 +31,10 @@ def unit_homography(rng: np.random.Generator) -> F64:
     kept within [0.4, 1.6] over it: a well-conditioned view."""
     a = rng.uniform(-np.pi, np.pi)
     sx, sy = rng.uniform(0.5, 2.0, 2)
-    rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1.0]])
-    h = rot @ np.array([[sx, rng.uniform(-0.3, 0.3), 0], [0, sy, 0], [0, 0, 1.0]])
+    rot = np.array(
+        [[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1.0]], dtype=np.float64
+    )
+    h = rot @ np.array([[sx, rng.uniform(-0.3, 0.3), 0], [0, sy, 0], [0, 0, 1.0]], dtype=np.float64)
     h[0, 2], h[1, 2] = rng.uniform(-0.5, 0.5, 2)
     h[2, 0], h[2, 1] = rng.uniform(-0.3, 0.3, 2)
     return h

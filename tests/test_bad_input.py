@@ -7,9 +7,10 @@ catch it: a panic anywhere below fails the test that triggered it.
 
 from __future__ import annotations
 
+import functools
 import pickle
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -31,7 +32,7 @@ def project(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Reference: points through h with NumPy (no checks)."""
     pts = np.asarray(pts, dtype=np.float64).reshape(-1, h.shape[1] - 1)
     q = np.c_[pts, np.ones(len(pts))] @ np.asarray(h, dtype=np.float64).T
-    return q[:, :-1] / q[:, -1:]
+    return np.asarray(q[:, :-1] / q[:, -1:], dtype=np.float64)
 
 
 def problem(n: int = N, seed: int = 0, noise: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
@@ -62,6 +63,7 @@ def message(excinfo: pytest.ExceptionInfo[BaseException]) -> str:
 
 def _pt(src: Any, _dst: Any) -> Any:
     out = pc.perspectiveTransform(src, H_TRUE)
+    assert out is not None  # None only for an empty input
     # Compared across input layouts (N, 2), (N, 1, 2), (1, N, 2): shape is tested on its own.
     return out.reshape(-1, 2)
 
@@ -69,8 +71,8 @@ def _pt(src: Any, _dst: Any) -> Any:
 # Every public entry point as f(src, dst) -> a comparable answer.
 CALLS: dict[str, Callable[[Any, Any], Any]] = {
     **{
-        f"estimate-{s}-{'refine' if r else 'linear'}": (
-            lambda s_, d_, s=s, r=r: pc.estimate_homography(s_, d_, solver=s, refine=r)
+        f"estimate-{s}-{'refine' if r else 'linear'}": functools.partial(
+            pc.estimate_homography, solver=s, refine=r
         )
         for s in pc.SOLVERS
         for r in (False, True)
@@ -91,7 +93,7 @@ CALLS: dict[str, Callable[[Any, Any], Any]] = {
 
 @pytest.mark.parametrize(("solver", "refine"), SOLVER_REFINE)
 @pytest.mark.parametrize("n", [0, 1, 3])
-def test_fewer_than_four_points(solver: str, refine: bool, n: int) -> None:
+def test_fewer_than_four_points(solver: pc.Solver, refine: bool, n: int) -> None:
     with pytest.raises(pc.HomographyError) as info:
         pc.estimate_homography(SRC[:n], DST[:n], solver, refine)
     assert not isinstance(info.value, pc.DegenerateError)
@@ -113,7 +115,7 @@ SQUARE8 = SRC[:8]
 
 
 def _all_but_one(outlier: int) -> np.ndarray:
-    pts = LINE.copy()
+    pts = np.array(LINE, dtype=np.float64)  # a copy
     pts[outlier] = [10.0, -40.0]
     return pts
 
@@ -140,7 +142,7 @@ DEGENERATE = [
     ("src", "dst", "which", "words"), [pytest.param(*c[1:], id=c[0]) for c in DEGENERATE]
 )
 def test_degenerate_geometry_is_named(
-    solver: str, refine: bool, src: np.ndarray, dst: np.ndarray, which: str, words: list[str]
+    solver: pc.Solver, refine: bool, src: np.ndarray, dst: np.ndarray, which: str, words: list[str]
 ) -> None:
     with pytest.raises(pc.DegenerateError) as info:
         pc.estimate_homography(src, dst, solver, refine)
@@ -172,7 +174,7 @@ def _straddling_horizon() -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize(("solver", "refine"), SOLVER_REFINE)
-def test_points_straddling_the_horizon(solver: str, refine: bool) -> None:
+def test_points_straddling_the_horizon(solver: pc.Solver, refine: bool) -> None:
     src, dst = _straddling_horizon()
     with pytest.raises(pc.DegenerateError) as info:
         pc.estimate_homography(src, dst, solver, refine)
@@ -204,7 +206,7 @@ def test_all_but_one_collinear_names_the_outlier(
     spacing: float,
     offset: float,
     in_dst: bool,
-    solver: str,
+    solver: pc.Solver,
 ) -> None:
     ts = np.array(data.draw(st.lists(st.integers(-50, 50), min_size=n, max_size=n, unique=True)))
     outlier = data.draw(st.integers(0, n - 1))
@@ -292,9 +294,9 @@ def _valid_points_shape(shape: tuple[int, ...]) -> bool:
     .filter(lambda s: not _valid_points_shape(s)),
     dtype=st.sampled_from([np.float64, np.float32, np.int64]),
 )
-def test_random_invalid_shapes(shape: tuple[int, ...], dtype: type) -> None:
+def test_random_invalid_shapes(shape: tuple[int, ...], dtype: type[np.number[Any]]) -> None:
     bad = np.ones(shape, dtype=dtype)
-    calls = [
+    calls: list[Callable[[], object]] = [
         lambda: pc.estimate_homography(bad, DST),
         lambda: pc.estimate_homography(SRC, bad),
         lambda: pc.transform_points(H_TRUE, bad),
@@ -347,7 +349,7 @@ def _with(a: np.ndarray, index: int, col: int, value: float) -> np.ndarray:
 @pytest.mark.parametrize("in_dst", [False, True], ids=["src", "dst"])
 @pytest.mark.parametrize(("index", "col"), [(0, 0), (7, 1), (N - 1, 0)])
 def test_estimate_nonfinite_names_set_and_index(
-    solver: str, refine: bool, value: float, in_dst: bool, index: int, col: int
+    solver: pc.Solver, refine: bool, value: float, in_dst: bool, index: int, col: int
 ) -> None:
     src, dst = (
         (SRC, _with(DST, index, col, value)) if in_dst else (_with(SRC, index, col, value), DST)
@@ -386,12 +388,14 @@ def test_transform_nonfinite_point_is_named(value: float, index: int, col: int) 
 
 @pytest.mark.parametrize("value", NONFINITE, ids=str)
 @pytest.mark.parametrize("invalid", ["raise", "inf"])
-def test_reprojection_nonfinite_source_point_is_refused(value: float, invalid: str) -> None:
+def test_reprojection_nonfinite_source_point_is_refused(
+    value: float, invalid: Literal["raise", "inf"]
+) -> None:
     """A non-finite point is bad input, not a point without an image: refused in both modes
     (invalid="inf" is for points the homography sends to infinity), naming set and index."""
     src = _with(SRC, 4, 0, value)
     with pytest.raises(pc.ArgumentError) as info:
-        pc.reprojection_errors(H_TRUE, src, DST, invalid=invalid)  # type: ignore[arg-type]
+        pc.reprojection_errors(H_TRUE, src, DST, invalid=invalid)
     assert not isinstance(info.value, pc.PointAtInfinityError)
     assert "source point 4 is not finite" in message(info)
     with pytest.raises(pc.ArgumentError, match="source point 4 is not finite"):
@@ -419,7 +423,9 @@ def _nan_masks(n: int) -> st.SearchStrategy[np.ndarray]:
     value=st.sampled_from(NONFINITE),
     solver=st.sampled_from(pc.SOLVERS),
 )
-def test_random_nonfinite_positions(data: st.DataObject, n: int, value: float, solver: str) -> None:
+def test_random_nonfinite_positions(
+    data: st.DataObject, n: int, value: float, solver: pc.Solver
+) -> None:
     src, dst = problem(n, seed=n)
     ms, md = data.draw(_nan_masks(n)), data.draw(_nan_masks(n))
     bad_src, bad_dst = src.copy(), dst.copy()
@@ -453,11 +459,11 @@ def test_random_nonfinite_positions(data: st.DataObject, n: int, value: float, s
     for invalid in ("raise", "inf"):
         if len(rows_s) or len(rows_d):
             with pytest.raises(pc.ArgumentError) as info:
-                pc.reprojection_errors(H_TRUE, bad_src, bad_dst, invalid=invalid)  # type: ignore[arg-type]
+                pc.reprojection_errors(H_TRUE, bad_src, bad_dst, invalid=invalid)
             assert expected in message(info)
         else:
             assert np.array_equal(
-                pc.reprojection_errors(H_TRUE, bad_src, bad_dst, invalid=invalid),  # type: ignore[arg-type]
+                pc.reprojection_errors(H_TRUE, bad_src, bad_dst, invalid=invalid),
                 pc.reprojection_errors(H_TRUE, src, dst),
             )
 
@@ -491,7 +497,9 @@ def test_empty_inputs() -> None:
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("shape", [(0, 1, 2), (1, 0, 2), (0, 2), (0, 1, 3)], ids=str)
-def test_perspective_transform_empty_returns_none(dtype: type, shape: tuple[int, ...]) -> None:
+def test_perspective_transform_empty_returns_none(
+    dtype: type[np.floating[Any]], shape: tuple[int, ...]
+) -> None:
     m = H_TRUE if shape[-1] == 2 else np.eye(4)
     assert pc.perspectiveTransform(np.zeros(shape, dtype), m) is None
     if len(shape) == 3:
@@ -517,11 +525,11 @@ def _column_strided(a: np.ndarray) -> np.ndarray:
 
 
 def _negative_stride(a: np.ndarray) -> np.ndarray:
-    return a[::-1].copy()[::-1]
+    return np.asarray(a[::-1].copy()[::-1])
 
 
 def _transposed(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a.T).T
+    return np.asarray(np.ascontiguousarray(a.T).T)
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -576,17 +584,19 @@ def test_matrix_layout_gives_the_same_answer(layout: str) -> None:
 
 @pytest.mark.parametrize("layout", ["a[::2]", "fortran", "readonly", "negative-stride"])
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
-def test_perspective_transform_layout_keeps_dtype_and_answer(layout: str, dtype: type) -> None:
+def test_perspective_transform_layout_keeps_dtype_and_answer(
+    layout: str, dtype: type[np.floating[Any]]
+) -> None:
     pts = SRC.reshape(-1, 1, 2).astype(dtype)
     expected = pc.perspectiveTransform(pts, H_TRUE)
     got = pc.perspectiveTransform(LAYOUTS[layout](pts), H_TRUE)
     assert identical(got, expected)
-    assert got.dtype == dtype
+    assert got is not None and got.dtype == dtype
 
 
 @pytest.mark.parametrize("dtype", [np.int32, np.int64, np.uint8, np.int16, np.uint64])
 @pytest.mark.parametrize("call", list(CALLS))
-def test_integer_dtypes_match_float64(dtype: type, call: str) -> None:
+def test_integer_dtypes_match_float64(dtype: type[np.integer[Any]], call: str) -> None:
     f = CALLS[call]
     assert identical(
         f(SRC_INT.astype(dtype), DST_INT.astype(dtype)),
@@ -776,11 +786,12 @@ def test_nonfinite_4x4_matrix_entry_is_located() -> None:
 )
 def test_wrong_matrix_shape(h: np.ndarray) -> None:
     shape = str(list(np.shape(h)))
-    for call in (
+    calls: tuple[Callable[[], object], ...] = (
         lambda: pc.transform_points(h, SRC),
         lambda: pc.transform_points(h, SRC, inverse=True),
         lambda: pc.reprojection_errors(h, SRC, DST),
-    ):
+    )
+    for call in calls:
         with pytest.raises(pc.ArgumentError) as info:
             call()
         assert "h must be a 3 x 3 matrix" in message(info)
@@ -977,7 +988,7 @@ def test_error_stats_rejects_nan(index: int) -> None:
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("value", NONFINITE, ids=str)
-def test_perspective_transform_nonfinite_point(dtype: type, value: float) -> None:
+def test_perspective_transform_nonfinite_point(dtype: type[np.floating[Any]], value: float) -> None:
     pts = _with(SRC, 3, 0, value).reshape(-1, 1, 2).astype(dtype)
     with pytest.raises(pc.PointAtInfinityError) as info:
         pc.perspectiveTransform(pts, H_TRUE)
@@ -999,14 +1010,18 @@ def test_perspective_transform_behind_horizon_matches_opencv() -> None:
     # The drop-in is unoriented like OpenCV: only w = 0 has no image.
     pts = PTS_HORIZON[[0, 2, 3, 4, 5]].reshape(-1, 1, 2)
     got = pc.perspectiveTransform(pts, H_HORIZON)
+    assert got is not None
     assert np.allclose(got, cv2.perspectiveTransform(pts, H_HORIZON), rtol=1e-14, atol=0)
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("shape", [(N, 1, 2), (1, N, 2), (N, 2)], ids=str)
-def test_perspective_transform_keeps_shape_and_dtype(dtype: type, shape: tuple[int, ...]) -> None:
+def test_perspective_transform_keeps_shape_and_dtype(
+    dtype: type[np.floating[Any]], shape: tuple[int, ...]
+) -> None:
     pts = SRC.astype(dtype).reshape(shape)
     out = pc.perspectiveTransform(pts, H_TRUE)
+    assert out is not None
     assert out.shape == shape
     assert out.dtype == dtype
     cv_in = pts.reshape(-1, 1, 2) if len(shape) == 2 else pts
@@ -1016,7 +1031,7 @@ def test_perspective_transform_keeps_shape_and_dtype(dtype: type, shape: tuple[i
 
 
 @pytest.mark.parametrize("dtype", [np.int32, np.uint8, np.float16])
-def test_perspective_transform_other_real_dtypes_give_float64(dtype: type) -> None:
+def test_perspective_transform_other_real_dtypes_give_float64(dtype: type[np.number[Any]]) -> None:
     pts = SRC_INT.reshape(-1, 1, 2)
     out = pc.perspectiveTransform(pts.astype(dtype), H_TRUE)
     assert identical(out, pc.perspectiveTransform(pts.astype(np.float64), H_TRUE))
@@ -1027,9 +1042,12 @@ M4 = np.array([[1, 0.1, 0, 2], [0, 1, 0.2, 1], [0.1, 0, 1, 0], [0.01, 0.02, 0.03
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("shape", [(30, 1, 3), (1, 30, 3), (30, 3)], ids=str)
-def test_perspective_transform_3d_matches_opencv(dtype: type, shape: tuple[int, ...]) -> None:
+def test_perspective_transform_3d_matches_opencv(
+    dtype: type[np.floating[Any]], shape: tuple[int, ...]
+) -> None:
     pts = np.random.default_rng(3).uniform(-5, 5, shape).astype(dtype)
     out = pc.perspectiveTransform(pts, M4)
+    assert out is not None
     assert out.shape == shape
     assert out.dtype == dtype
     ref = cv2.perspectiveTransform(pts.reshape(-1, 1, 3), M4).reshape(shape)
@@ -1038,6 +1056,7 @@ def test_perspective_transform_3d_matches_opencv(dtype: type, shape: tuple[int, 
     # And 3-D to 2-D through a 3 x 4 matrix.
     m34 = M4[[0, 1, 3]]
     out2 = pc.perspectiveTransform(pts, m34)
+    assert out2 is not None
     assert out2.shape == (*shape[:-1], 2)
     ref2 = cv2.perspectiveTransform(pts.reshape(-1, 1, 3), m34).reshape(out2.shape)
     assert np.allclose(out2, ref2, rtol=rtol, atol=1e-12)
@@ -1046,6 +1065,7 @@ def test_perspective_transform_3d_matches_opencv(dtype: type, shape: tuple[int, 
 def test_perspective_transform_2d_to_3d_is_the_projective_map() -> None:
     m43 = np.r_[H_TRUE[:2], [[0.3, 0.1, 2.0]], H_TRUE[2:]]
     out = pc.perspectiveTransform(SRC.reshape(-1, 1, 2), m43)
+    assert out is not None
     assert out.shape == (N, 1, 3)
     assert np.allclose(out.reshape(-1, 3), project(m43, SRC), rtol=1e-14)
 
@@ -1118,6 +1138,7 @@ def test_find_homography_opencv_layouts() -> None:
         for dtype in (np.float32, np.float64):
             s, d = SRC.astype(dtype).reshape(shape), DST.astype(dtype).reshape(shape)
             h, mask = pc.findHomography(s, d)
+            assert h is not None
             assert h.dtype == np.float64
             assert h.shape == (3, 3)
             assert mask.shape == (N, 1)

@@ -184,7 +184,7 @@ def test_calibrate_from_a_video_file_and_an_image_folder(
     video = tmp_path / "board.avi"
     frame = cv2.cvtColor(scene.calibration.image, cv2.COLOR_GRAY2BGR)
     writer = cv2.VideoWriter(
-        str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (frame.shape[1], frame.shape[0])
+        str(video), cv2.VideoWriter.fourcc(*"MJPG"), 10, (frame.shape[1], frame.shape[0])
     )
     assert writer.isOpened()
     for _ in range(5):

@@ -79,7 +79,7 @@ def random_homography(rng: np.random.Generator, scale: float) -> np.ndarray:
 
 def project(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
     q = np.c_[pts, np.ones(len(pts))] @ h.T
-    return q[:, :2] / q[:, 2:]
+    return np.asarray(q[:, :2] / q[:, 2:], dtype=np.float64)
 
 
 def problems(count: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -124,7 +124,7 @@ def big_points(seed: int, n: int = BIG, bad: int = 0) -> np.ndarray:
 
 def test_estimate_homography_concurrent() -> None:
     tasks = [
-        (lambda s=s, d=d, sv=sv, r=r: pc.estimate_homography(s, d, sv, r))
+        functools.partial(pc.estimate_homography, s, d, sv, r)
         for s, d in problems(24, seed=1)
         for sv in pc.SOLVERS
         for r in (False, True)
@@ -133,7 +133,7 @@ def test_estimate_homography_concurrent() -> None:
 
 
 def test_find_homography_concurrent() -> None:
-    tasks: list[Task] = [(lambda s=s, d=d: pc.findHomography(s, d)) for s, d in problems(30, 2)]
+    tasks: list[Task] = [functools.partial(pc.findHomography, s, d) for s, d in problems(30, 2)]
     # Few points: an error that is a cv2.error too.
     tasks.append(lambda: pc.findHomography(np.zeros((3, 2)), np.zeros((3, 2))))
     check_concurrent(tasks, rounds=3)
@@ -142,7 +142,7 @@ def test_find_homography_concurrent() -> None:
 def test_transform_points_large_concurrent() -> None:
     clean = [big_points(s) for s in range(3)]
     dirty = big_points(10, bad=40)
-    tasks: list[Task] = [(lambda p=p: pc.transform_points(H, p)) for p in clean]
+    tasks: list[Task] = [functools.partial(pc.transform_points, H, p) for p in clean]
     tasks += [
         lambda: pc.transform_points(H, project(H, clean[0]), inverse=True),
         lambda: pc.transform_points(H, clean[1].reshape(1, -1, 2)),

@@ -9,9 +9,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 import planarcal
-from conftest import SHARED
+from conftest import SHARED, RecordProperty
 from planarcal.board import CircleGridBoard
 from planarcal.detect import detect_board
 from planarcal.errors import BoardNotFoundError, ImageError
@@ -28,13 +29,19 @@ def _photo(name: str) -> Path:
     return path
 
 
+def _read(path: Path, flags: int = cv2.IMREAD_COLOR) -> NDArray[np.uint8]:
+    image = cv2.imread(str(path), flags)
+    assert image is not None, f"cannot read {path}"
+    return np.asarray(image, dtype=np.uint8)
+
+
 def _symmetries(grid: np.ndarray) -> list[np.ndarray]:
     return [grid, grid[::-1], grid[:, ::-1], grid[::-1, ::-1]]
 
 
 @pytest.mark.parametrize("name", IMAGES)
 def test_every_real_photograph_is_detected_in_the_boards_order(
-    name: str, record_property: pytest.RecordProperty
+    name: str, record_property: RecordProperty
 ) -> None:
     path = _photo(name)
     det = detect_board(path, BOARD)
@@ -49,7 +56,7 @@ def test_every_real_photograph_is_detected_in_the_boards_order(
     corners = [grid[0, 0], grid[-1, -1]]  # the two unmirrored readings' origins
     assert np.hypot(*corners[0]) <= np.hypot(*corners[1])
     # The same dots OpenCV's clustering finder sees, up to a re-reading of the grid.
-    grey = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    grey = _read(path, cv2.IMREAD_GRAYSCALE)
     flags = cv2.CALIB_CB_SYMMETRIC_GRID | cv2.CALIB_CB_CLUSTERING
     found, cv_pts = cv2.findCirclesGrid(grey, (10, 8), flags=flags)
     assert found
@@ -94,14 +101,14 @@ def test_the_wrong_board_size_is_refused_with_what_was_seen() -> None:
 
 
 def test_a_board_partly_out_of_view_is_refused() -> None:
-    image = cv2.imread(str(_photo("image00003.jpg")))
+    image = _read(_photo("image00003.jpg"))
     cropped = image[:, : image.shape[1] // 2]
     with pytest.raises(BoardNotFoundError, match="fewer dots than the board has"):
         detect_board(cropped, BOARD)
 
 
 def test_light_dots_on_a_dark_board_are_found() -> None:
-    image = cv2.imread(str(_photo("image00001.jpg")))
+    image = _read(_photo("image00001.jpg"))
     dark = detect_board(image, BOARD)
     light = detect_board(255 - image, BOARD)
     assert light.polarity == "light" and dark.polarity == "dark"

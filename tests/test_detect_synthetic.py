@@ -16,7 +16,9 @@ BOARD = synth.PAPER_BOARD
 
 
 def _errors(points: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(points[:, None] - truth[None], axis=2).min(axis=1)
+    return np.asarray(
+        np.linalg.norm(points[:, None] - truth[None], axis=2).min(axis=1), dtype=np.float64
+    )
 
 
 def _rms(e: np.ndarray) -> float:

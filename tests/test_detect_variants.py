@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import RecordProperty
 from planarcal import synth
 from planarcal.board import CircleGridBoard
 from planarcal.detect import BoardDetection, BoardTurnedError, detect_board
@@ -52,7 +53,7 @@ def _detect(v: synth.BoardVariant, board: CircleGridBoard | None = None) -> Boar
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_variant_is_found_to_hundredths_of_a_pixel(
-    name: str, variants: dict[str, synth.BoardVariant], record_property: pytest.RecordProperty
+    name: str, variants: dict[str, synth.BoardVariant], record_property: RecordProperty
 ) -> None:
     v = variants[name]
     det = _detect(v)

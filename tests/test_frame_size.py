@@ -24,6 +24,7 @@ from planarcal.errors import FrameSizeError
 from planarcal.intrinsics import CameraIntrinsics
 from planarcal.objects import locate_objects
 from planarcal.tracker import Tracker
+from scene_effects import SceneEffects
 from test_tracker import LateCamera, render_moving, write_video
 from test_tracker import _run as run_command
 
@@ -39,7 +40,7 @@ PARTS = [
     synth.SceneObject("disc", (200.0, 70.0), size_mm=14.0),
     synth.SceneObject("washer", (120.0, 140.0), size_mm=12.0),
 ]
-EFFECTS = {"blur_sigma_px": 0.7, "noise_sigma": 1.0}
+EFFECTS: SceneEffects = {"blur_sigma_px": 0.7, "noise_sigma": 1.0}
 
 
 def pixel_scaling(s: float, px: np.ndarray) -> np.ndarray:
@@ -75,7 +76,7 @@ def video_1280x720(tmp_path_factory: pytest.TempPathFactory) -> Path:
 # the calibration records its size
 
 
-def test_the_image_size_is_recorded_saved_and_pickled(cal_640: Calibration, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_the_image_size_is_recorded_saved_and_pickled(cal_640: Calibration, tmp_path: Path) -> None:
     assert cal_640.image_size == (640, 480)
     back = Calibration.load(cal_640.save(tmp_path / "calib.json"))
     assert back.image_size == (640, 480)

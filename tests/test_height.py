@@ -13,6 +13,7 @@ from planarcal.detect import detect_board
 from planarcal.errors import IntrinsicsError
 from planarcal.intrinsics import CameraIntrinsics, calibrate_camera
 from planarcal.objects import detect_objects, locate_objects
+from scene_effects import PAPER_EFFECTS
 
 BOARD = synth.PAPER_BOARD
 # Parts all over the working area, the board's corners and beyond included: the parallax of
@@ -41,7 +42,7 @@ def _raised_scene(calib: synth.RenderedScene, height: float, seed: int) -> synth
         board=None,
         objects=objects,
         seed=seed,
-        **synth.PAPER_EFFECTS,
+        **PAPER_EFFECTS,
     )
 
 

@@ -36,16 +36,19 @@ BOARD = synth.PAPER_BOARD
 TRUTH = CameraIntrinsics(CAMERA.matrix(), CAMERA.dist_coeffs(), (CAMERA.width, CAMERA.height))
 
 # OpenCV's calibration tutorial's webcam (its out_camera_data.yml): a strong barrel with a k3
-# that folds the model over just outside the 640 x 480 image's corners.
+# that folds the model over just outside the 640 x 480 image's corners. Given as lists: the
+# constructor takes any array-like, though the fields are typed as the arrays they become.
 WEBCAM = CameraIntrinsics(
-    [[657.46697944293521, 0.0, 319.5], [0.0, 657.46697944293521, 239.5], [0.0, 0.0, 1.0]],
-    [-0.41802327176423804, 0.50715244063187526, 0.0, 0.0, -0.57843597214487474],
+    [[657.46697944293521, 0.0, 319.5], [0.0, 657.46697944293521, 239.5], [0.0, 0.0, 1.0]],  # type: ignore[arg-type]
+    [-0.41802327176423804, 0.50715244063187526, 0.0, 0.0, -0.57843597214487474],  # type: ignore[arg-type]
     (640, 480),
 )
 # Every term of OpenCV's 14-coefficient model (rational, tangential, thin prism, tilt).
 FULL_MODEL = CameraIntrinsics(
-    [[800.0, 0.0, 330.0], [0.0, 805.0, 250.0], [0.0, 0.0, 1.0]],
-    [-0.3, 0.1, 1e-3, -5e-4, -0.01, 0.05, 0.02, 0.001, 1e-3, -2e-4, 5e-4, 1e-4, 0.01, -0.005],
+    np.array([[800.0, 0.0, 330.0], [0.0, 805.0, 250.0], [0.0, 0.0, 1.0]]),
+    np.array(
+        [-0.3, 0.1, 1e-3, -5e-4, -0.01, 0.05, 0.02, 0.001, 1e-3, -2e-4, 5e-4, 1e-4, 0.01, -0.005]
+    ),
     (640, 480),
 )
 
@@ -295,7 +298,9 @@ def test_points_past_the_fold_are_refused() -> None:
         WEBCAM.distort_points([[-600.0, -450.0]])
     # A model that folds inside its image is refused as a whole.
     folding = CameraIntrinsics(
-        [[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]], [-0.5, 0, 0, 0], (640, 480)
+        np.array([[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]]),
+        np.array([-0.5, 0, 0, 0], dtype=np.float64),
+        (640, 480),
     )
     with pytest.raises(IntrinsicsError, match="cannot be inverted over the whole 640 x 480 image"):
         folding.check_invertible_over_image()

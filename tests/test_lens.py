@@ -26,8 +26,12 @@ def _world_error(cal: Calibration, scene: synth.RenderedScene, rng: np.random.Ge
     return float(np.hypot(*(cal.image_to_world(scene.project(truth)) - truth).T).mean())
 
 
+# The scenes fixture: each view, calibrated with the automatic lens model and without one.
+Scenes = list[tuple[synth.RenderedScene, Calibration, Calibration]]
+
+
 @pytest.fixture(scope="module")
-def scenes() -> list[tuple[synth.RenderedScene, Calibration, Calibration]]:
+def scenes() -> Scenes:
     """Three random views of the paper's setup, each calibrated with the automatic lens
     model and with a homography alone."""
     out = []
@@ -40,7 +44,7 @@ def scenes() -> list[tuple[synth.RenderedScene, Calibration, Calibration]]:
     return out
 
 
-def test_the_lens_model_is_chosen_and_maps_to_a_hundredth_of_a_millimetre(scenes) -> None:  # type: ignore[no-untyped-def]
+def test_the_lens_model_is_chosen_and_maps_to_a_hundredth_of_a_millimetre(scenes: Scenes) -> None:
     rng = np.random.default_rng(0)
     for scene, cal, plain in scenes:
         assert cal.lens_model in ("k1", "k1k2", "k1k2c"), cal.lens_note
@@ -62,14 +66,14 @@ def test_the_lens_model_is_chosen_and_maps_to_a_hundredth_of_a_millimetre(scenes
         assert np.allclose(ideal + lens.displacement_px(ideal), pts, atol=1e-9)
 
 
-def test_predicted_uncertainty_agrees_with_leave_one_out(scenes) -> None:  # type: ignore[no-untyped-def]
+def test_predicted_uncertainty_agrees_with_leave_one_out(scenes: Scenes) -> None:
     for _, cal, _ in scenes:
         s = cal.summary()
         ratio = s.loo_rms_mm / s.predicted_loo_rms_mm
         assert 1 / 1.5 < ratio < 1.5, (s.loo_rms_mm, s.predicted_loo_rms_mm)
 
 
-def test_uncertainty_grows_away_from_the_board_and_with_pixel_noise(scenes) -> None:  # type: ignore[no-untyped-def]
+def test_uncertainty_grows_away_from_the_board_and_with_pixel_noise(scenes: Scenes) -> None:
     scene, cal, _ = scenes[0]
     centre = scene.project(np.array([[130.0, 90.0]]))
     corner = scene.project(np.array([[0.0, 0.0]]))
@@ -94,7 +98,7 @@ def test_a_small_board_gets_no_lens_model_and_says_why() -> None:
     assert "too little" in cal.lens_note and "reaches only" in cal.lens_note
 
 
-def test_lens_options_are_checked(scenes) -> None:  # type: ignore[no-untyped-def]
+def test_lens_options_are_checked(scenes: Scenes) -> None:
     _, cal, _ = scenes[0]
     w, i = cal.world_points, cal.image_points
     with pytest.raises(LensModelError, match="lens must be"):
@@ -109,7 +113,7 @@ def test_lens_options_are_checked(scenes) -> None:  # type: ignore[no-untyped-de
     assert forced.lens_model == "k1" and forced.lens is not None and forced.lens.k2 == 0.0
 
 
-def test_pixels_beyond_the_lens_model_are_refused_not_mapped(scenes) -> None:  # type: ignore[no-untyped-def]
+def test_pixels_beyond_the_lens_model_are_refused_not_mapped(scenes: Scenes) -> None:
     _, cal, _ = scenes[0]
     lens = cal.lens
     assert lens is not None
@@ -122,7 +126,7 @@ def test_pixels_beyond_the_lens_model_are_refused_not_mapped(scenes) -> None:  #
         cal.image_to_world(far, height=[1.0, 2.0])
 
 
-def test_files_keep_the_lens_and_read_version_one(scenes, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_files_keep_the_lens_and_read_version_one(scenes: Scenes, tmp_path: Path) -> None:
     scene, cal, plain = scenes[0]
     back = Calibration.load(cal.save(tmp_path / "c.json"))
     px = scene.project(np.array([[10.0, 10.0], [250.0, 170.0]]))
@@ -147,7 +151,7 @@ def test_files_keep_the_lens_and_read_version_one(scenes, tmp_path: Path) -> Non
     assert v1.lens_model == "none" and np.array_equal(v1.H, plain.H)
 
 
-def test_a_printer_scale_error_is_corrected_by_the_measured_pitch(scenes) -> None:  # type: ignore[no-untyped-def]
+def test_a_printer_scale_error_is_corrected_by_the_measured_pitch(scenes: Scenes) -> None:
     scene, cal, _ = scenes[0]
     # The board was "printed" 1.5 % too large in X and 0.8 % too small in Y: the true
     # positions are the nominal ones scaled. The calibration, not knowing, is off by that much.

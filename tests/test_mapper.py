@@ -9,6 +9,7 @@ import subprocess
 import sys
 import textwrap
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -37,12 +38,14 @@ F64 = NDArray[np.float64]
 
 def _project(h: F64, pts: F64) -> F64:
     v = np.c_[pts, np.ones(len(pts))] @ h.T
-    return v[:, :2] / v[:, 2:]
+    return np.asarray(v[:, :2] / v[:, 2:], dtype=np.float64)
 
 
 def _distort(u: F64, k1: float) -> F64:
     q = (u - CENTRE) / SCALE
-    return CENTRE + SCALE * q * (1.0 + k1 * (q * q).sum(axis=1, keepdims=True))
+    return np.asarray(
+        CENTRE + SCALE * q * (1.0 + k1 * (q * q).sum(axis=1, keepdims=True)), dtype=np.float64
+    )
 
 
 def _grid() -> F64:
@@ -212,12 +215,12 @@ def test_out_with_nan_fills_failures_in_place(planes: dict[str, FittedPlane]) ->
     ],
 )
 def test_a_wrong_out_is_refused_clearly(
-    planes: dict[str, FittedPlane], make_out: object, message: str
+    planes: dict[str, FittedPlane], make_out: Callable[[int], object], message: str
 ) -> None:
     mapper = PlaneMapper(planes["none"], SIZE)
     px = _pixels(np.random.default_rng(3), 10)
     with pytest.raises(ArgumentError, match=message):
-        mapper.image_to_world(px, out=make_out(len(px)))  # type: ignore[operator]
+        mapper.image_to_world(px, out=make_out(len(px)))  # type: ignore[arg-type]
 
 
 def test_a_read_only_or_aliased_out_is_refused(planes: dict[str, FittedPlane]) -> None:

@@ -274,8 +274,8 @@ def test_unmappable_pixels_are_masked_not_fatal(cal: Calibration) -> None:
     w, h = cal.image_size
     f = 0.7 * w
     intrinsics = CameraIntrinsics(
-        [[f, 0.0, (w - 1) / 2], [0.0, f, (h - 1) / 2], [0.0, 0.0, 1.0]],
-        [-0.5, 0.0, 0.0, 0.0, 0.0],
+        np.array([[f, 0.0, (w - 1) / 2], [0.0, f, (h - 1) / 2], [0.0, 0.0, 1.0]]),
+        np.array([-0.5, 0.0, 0.0, 0.0, 0.0]),
         (w, h),
     )
     folded = Calibration(
@@ -394,9 +394,8 @@ def _flagged(detection: Any, **extra: Any) -> Any:
         "warnings": ("the board fills little of the image",),
         **extra,
     }
-    if dataclasses.is_dataclass(detection) and all(
-        f in {x.name for x in dataclasses.fields(detection)} for f in fields
-    ):
+    is_instance = dataclasses.is_dataclass(detection) and not isinstance(detection, type)
+    if is_instance and all(f in {x.name for x in dataclasses.fields(detection)} for f in fields):
         return dataclasses.replace(detection, **fields)  # once detect.py carries them
     return types.SimpleNamespace(**vars(_plain(detection)), **fields)
 

@@ -5,8 +5,10 @@ given, and its pixels with its own geometry to well under a hundredth of a pixel
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -335,6 +337,7 @@ def test_pixels_match_a_brute_force_reference() -> None:
     rel = plane[:, None, :] - hexagon[None]
     in_hex = (edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0] >= 0).all(axis=1)
     assert nut.hole_diameter_mm == pytest.approx(0.85 * 12.0)
+    assert nut.hole_diameter_mm is not None
     hole = np.linalg.norm(plane - nut.position_mm, axis=1) < nut.hole_diameter_mm / 2
     inside |= in_hex & ~hole
     inside |= np.linalg.norm(plane - disc.position_mm, axis=1) < disc.size_mm / 2
@@ -387,9 +390,11 @@ def test_dots_are_dark_and_the_paper_light(paper: synth.PaperScene) -> None:
 
 
 def test_light_on_dark_inverts_the_board() -> None:
-    kw = {"board": SMALL_BOARD, "paper_margin_mm": 10.0}
-    normal = render_scene(SMALL_CAMERA, SMALL_POSE, **kw).image.astype(int)
-    inverse = render_scene(SMALL_CAMERA, SMALL_POSE, light_on_dark=True, **kw).image.astype(int)
+    render = functools.partial(
+        render_scene, SMALL_CAMERA, SMALL_POSE, board=SMALL_BOARD, paper_margin_mm=10.0
+    )
+    normal = render().image.astype(int)
+    inverse = render(light_on_dark=True).image.astype(int)
     # Inside the paper every pixel is inverted (paper <-> ink), outside nothing changes.
     corners = SMALL_CAMERA.project([[-13.0, -13.0], [73.0, 53.0]], SMALL_POSE)
     (x0, y0), (x1, y1) = np.ceil(corners[0]).astype(int), np.floor(corners[1]).astype(int)
@@ -405,10 +410,18 @@ def test_light_on_dark_inverts_the_board() -> None:
 
 
 def test_same_seed_same_image_other_seed_other_noise() -> None:
-    kw = {"board": SMALL_BOARD, "noise_sigma": 3.0, "blur_sigma_px": 0.7, "vignette": 0.2}
-    a = render_scene(SMALL_CAMERA, SMALL_POSE, seed=5, **kw).image
-    b = render_scene(SMALL_CAMERA, SMALL_POSE, seed=5, **kw).image
-    c = render_scene(SMALL_CAMERA, SMALL_POSE, seed=6, **kw).image
+    render = functools.partial(
+        render_scene,
+        SMALL_CAMERA,
+        SMALL_POSE,
+        board=SMALL_BOARD,
+        noise_sigma=3.0,
+        blur_sigma_px=0.7,
+        vignette=0.2,
+    )
+    a = render(seed=5).image
+    b = render(seed=5).image
+    c = render(seed=6).image
     np.testing.assert_array_equal(a, b)
     assert (a != c).mean() > 0.5
     assert np.abs(a.astype(int) - c.astype(int)).mean() < 5  # only the noise differs
@@ -454,8 +467,8 @@ def test_uneven_lighting() -> None:
     ).image.astype(np.float64)
     assert img[:, -1].mean() / img[:, 0].mean() == pytest.approx(1.2 / 0.8, rel=0.01)
     assert (np.diff(img[100]) >= 0).all()
-    img = render_scene(SMALL_CAMERA, SMALL_POSE, board=None, vignette=0.3).image
-    assert img[0, 0] == round(100 * 0.7) and img[119, 159] == 100
+    vignetted = render_scene(SMALL_CAMERA, SMALL_POSE, board=None, vignette=0.3).image
+    assert vignetted[0, 0] == round(100 * 0.7) and vignetted[119, 159] == 100
 
 
 def test_color() -> None:
@@ -729,11 +742,18 @@ def test_height_zero_renders_as_before() -> None:
         SceneObject("disc", (-40.0, 60.0), size_mm=15.0, grey=210.0),
         SceneObject("rectangle", (40.0, 75.0), angle_deg=64.0, size_mm=9.0, length_mm=24.0),
     ]
-    kw = {"board": SMALL_BOARD, "board_origin_mm": (5.0, 3.0), "board_angle_deg": 4.0}
-    scene = render_scene(camera, pose, objects=objects, **kw)  # type: ignore[arg-type]
+    render = functools.partial(
+        render_scene,
+        camera,
+        pose,
+        board=SMALL_BOARD,
+        board_origin_mm=(5.0, 3.0),
+        board_angle_deg=4.0,
+    )
+    scene = render(objects=objects)
     assert hashlib.sha256(scene.image.tobytes()).hexdigest() == FLAT_SCENE_SHA256
     given = [dataclasses.replace(o, height_mm=0.0) for o in objects]
-    again = render_scene(camera, pose, objects=given, **kw)  # type: ignore[arg-type]
+    again = render(objects=given)
     np.testing.assert_array_equal(again.image, scene.image)
     np.testing.assert_array_equal(again.object_centroids_px, scene.object_centroids_px)
     np.testing.assert_array_equal(scene.object_heights_mm, np.zeros(5))
@@ -873,11 +893,11 @@ def test_paper_scene_options() -> None:
         (lambda: PlanePose(0.0), ValueError, "behind the camera"),
         (lambda: PlanePose(-100.0), ValueError, "behind the camera"),
         (lambda: PlanePose(500.0, tilt_deg=90.0), ValueError, "edge-on"),
-        (lambda: PlanePose(500.0, look_at_mm=(1.0,)), ValueError, "pair"),
+        (lambda: PlanePose(500.0, look_at_mm=(1.0,)), ValueError, "pair"),  # type: ignore[arg-type]
         (lambda: PlanePose(float("nan")), ValueError, "finite"),
         (lambda: CameraModel(focal_px=0.0), ValueError, "focal_px must be positive"),
         (lambda: CameraModel(width=0), ImageError, "width"),
-        (lambda: CameraModel(width=640.0), ImageError, "whole number"),
+        (lambda: CameraModel(width=640.0), ImageError, "whole number"),  # type: ignore[arg-type]
         (lambda: CameraModel(k1=-0.6), ValueError, "folds over"),
         (lambda: SceneObject("nut", (0, 0), size_mm=0.0), ValueError, "size_mm must be positive"),
         (lambda: SceneObject("nut", (0, 0), size_mm=-3.0), ValueError, "size_mm"),
@@ -943,6 +963,8 @@ def test_paper_scene_options() -> None:
         (lambda: SceneObject("nut", (0, 0)).silhouette(arc_vertices=3), ValueError, "at least 8"),
     ],
 )
-def test_invalid_parameters_raise_clear_errors(make, error: type[Exception], words: str) -> None:  # type: ignore[no-untyped-def]
+def test_invalid_parameters_raise_clear_errors(
+    make: Callable[[], object], error: type[Exception], words: str
+) -> None:
     with pytest.raises(error, match=words):
         make()

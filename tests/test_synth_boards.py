@@ -4,7 +4,9 @@ of board variants, each checked against geometry computed independently of the r
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -29,7 +31,8 @@ def supersampled_plane_points(camera: CameraModel, pose: PlanePose, m: int) -> n
 
 def weighted_centroid(weights: np.ndarray, x0: int, y0: int) -> np.ndarray:
     ys, xs = np.mgrid[y0 : y0 + weights.shape[0], x0 : x0 + weights.shape[1]]
-    return np.array([(weights * xs).sum(), (weights * ys).sum()]) / weights.sum()
+    centroid = np.array([(weights * xs).sum(), (weights * ys).sum()]) / weights.sum()
+    return np.asarray(centroid, dtype=np.float64)
 
 
 # ----------------------------------------------------------------------------- the dots
@@ -155,7 +158,7 @@ def test_dots_in_view_counts_the_enlarged_dots() -> None:
         (lambda: render_scene(board=CircleGridBoard(diameter=None)), "diameter is unknown"),
     ],
 )
-def test_bad_boards_raise_board_errors(make, words: str) -> None:  # type: ignore[no-untyped-def]
+def test_bad_boards_raise_board_errors(make: Callable[[], object], words: str) -> None:
     with pytest.raises(BoardError, match=words):
         make()
 
@@ -246,8 +249,8 @@ def test_marks_land_where_asked() -> None:
     rings = synth.printed_marks(board, "rings", seed=1)
     assert len(rings) % 32 == 0
     for k in range(len(rings) // 32):
-        c = centre(rings[32 * k : 32 * (k + 1)])
-        assert np.linalg.norm(pts - c, axis=1).min() < 1e-9
+        ring_centre = centre(rings[32 * k : 32 * (k + 1)])
+        assert np.linalg.norm(pts - ring_centre, axis=1).min() < 1e-9
     numbers = synth.printed_marks(board, "numbers", seed=1)
     tops = [m for m in numbers if m.position_mm[1] < -5.0 - 0.3 * 15.0]
     lefts = [m for m in numbers if m.position_mm[0] < -5.0 - 0.3 * 15.0]
@@ -290,14 +293,21 @@ def test_marks_render_in_the_ink_and_are_no_truth() -> None:
     Light on dark they are printed in the (light) ink too."""
     board = CircleGridBoard(6, 6, 20.0, 13.2)
     camera = CameraModel(width=640, height=480, focal_px=900.0)
-    placed = {"board_origin_mm": (30.0, -20.0), "board_angle_deg": 25.0}
     look = synth._board_to_table(np.array([[50.0, 50.0]]), (30.0, -20.0), 25.0)[0]
     pose = PlanePose(330.0, look_at_mm=(float(look[0]), float(look[1])))
     marks = synth.printed_marks(board, ("numbers", "cell_numbers", "arrows", "text"), seed=2)
     for light_on_dark, ink in ((False, INK), (True, PAPER)):
-        kw = {"board": board, "light_on_dark": light_on_dark, **placed}
-        plain = render_scene(camera, pose, **kw)  # type: ignore[arg-type]
-        scene = render_scene(camera, pose, marks=marks, **kw)  # type: ignore[arg-type]
+        render = functools.partial(
+            render_scene,
+            camera,
+            pose,
+            board=board,
+            light_on_dark=light_on_dark,
+            board_origin_mm=(30.0, -20.0),
+            board_angle_deg=25.0,
+        )
+        plain = render()
+        scene = render(marks=marks)
         assert scene.marks == marks and scene.objects == ()
         assert scene.object_centroids_px.shape == (0, 2)
         np.testing.assert_array_equal(scene.dot_centres_px, plain.dot_centres_px)
@@ -342,7 +352,7 @@ def pure(image: np.ndarray, value: float) -> np.ndarray:
             out &= np.roll(np.roll(eq, dy, axis=0), dx, axis=1)
     out[[0, -1], :] = False
     out[:, [0, -1]] = False
-    return out
+    return np.asarray(out, dtype=np.bool_)
 
 
 @pytest.mark.parametrize("light_on_dark", [False, True])
@@ -352,10 +362,12 @@ def test_textures_only_on_their_material(light_on_dark: bool) -> None:
     board = CircleGridBoard(6, 4, 20.0, 10.0)
     camera = CameraModel(width=400, height=300, focal_px=700.0, k1=-0.1)
     pose = PlanePose(600.0, tilt_deg=20.0, tilt_axis_deg=30.0, look_at_mm=(50.0, 30.0))
-    kw = {"board": board, "light_on_dark": light_on_dark, "table_grey": TABLE}
-    plain = render_scene(camera, pose, **kw).image  # type: ignore[arg-type]
-    table = render_scene(camera, pose, table_texture=12.0, **kw).image  # type: ignore[arg-type]
-    paper = render_scene(camera, pose, paper_texture=6.0, **kw).image  # type: ignore[arg-type]
+    render = functools.partial(
+        render_scene, camera, pose, board=board, light_on_dark=light_on_dark, table_grey=TABLE
+    )
+    plain = render().image
+    table = render(table_texture=12.0).image
+    paper = render(paper_texture=6.0).image
     paper_tone, ink_tone = (INK, PAPER) if light_on_dark else (PAPER, INK)
     on_table, on_paper, on_ink = pure(plain, TABLE), pure(plain, paper_tone), pure(plain, ink_tone)
     assert min(on_table.sum(), on_paper.sum(), on_ink.sum()) > 1000
@@ -366,9 +378,9 @@ def test_textures_only_on_their_material(light_on_dark: bool) -> None:
     assert 0.6 * 12.0 < d_table[on_table].std() < 1.4 * 12.0
     assert 0.6 * 6.0 < d_paper[on_paper].std() < 1.4 * 6.0
     assert (d_table[on_table] != 0).mean() > 0.8
-    again = render_scene(camera, pose, table_texture=12.0, **kw).image  # type: ignore[arg-type]
+    again = render(table_texture=12.0).image
     np.testing.assert_array_equal(again, table)
-    other = render_scene(camera, pose, table_texture=12.0, seed=1, **kw).image  # type: ignore[arg-type]
+    other = render(table_texture=12.0, seed=1).image
     assert (other != table)[on_table].mean() > 0.5
 
 
@@ -396,7 +408,7 @@ def test_jpeg_changes_the_image_but_not_its_form(color: bool) -> None:
     with pytest.raises(ImageError, match="quality"):
         synth.jpeg(scene.image, 101)
     with pytest.raises(ImageError, match="uint8"):
-        synth.jpeg(scene.image.astype(np.float32), 75)  # type: ignore[arg-type]
+        synth.jpeg(scene.image.astype(np.float32), 75)
 
 
 # ----------------------------------------------------------------------------- the corpus

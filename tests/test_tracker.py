@@ -30,8 +30,12 @@ from planarcal.detect import detect_board
 from planarcal.errors import CameraError, IntrinsicsError
 from planarcal.homography import transform_points
 from planarcal.tracker import FrameResult, Tracker
+from scene_effects import PAPER_EFFECTS
 
 N_FRAMES = 24
+
+# The video fixture: the file, each frame's truth (frames x 3 x 2, mm), the frames.
+Video = tuple[Path, np.ndarray, list[np.ndarray]]
 
 
 def moving_objects(k: int) -> list[synth.SceneObject]:
@@ -47,7 +51,7 @@ def write_video(path: Path, frames: list[np.ndarray]) -> Path:
     """A real video file (MJPEG in AVI, near-lossless, grey) of `frames`."""
     height, width = frames[0].shape[:2]
     writer = cv2.VideoWriter(
-        str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (width, height), False
+        str(path), cv2.VideoWriter.fourcc(*"MJPG"), 30.0, (width, height), False
     )
     writer.set(cv2.VIDEOWRITER_PROP_QUALITY, 100)
     for frame in frames:
@@ -64,7 +68,7 @@ def render_moving(k: int) -> synth.RenderedScene:
         board=None,
         objects=moving_objects(k),
         seed=k,
-        **synth.PAPER_EFFECTS,
+        **PAPER_EFFECTS,
     )
 
 
@@ -75,7 +79,7 @@ def calibration() -> Calibration:
 
 
 @pytest.fixture(scope="module")
-def video(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, list[np.ndarray]]:
+def video(tmp_path_factory: pytest.TempPathFactory) -> Video:
     """A real video file (MJPEG in AVI, near-lossless) of the moving parts, the truth of each
     frame (frames x 3 x 2, mm) and the frames themselves."""
     scenes = [render_moving(k) for k in range(N_FRAMES)]
@@ -97,7 +101,9 @@ def check_tracks(results: list[FrameResult], truth: np.ndarray, tol_mm: float) -
     assert sorted(owner) == [1, 2, 3]
 
 
-def test_objects_are_tracked_in_millimetres_through_a_video(calibration, video) -> None:  # type: ignore[no-untyped-def]
+def test_objects_are_tracked_in_millimetres_through_a_video(
+    calibration: Calibration, video: Video
+) -> None:
     path, truth, _ = video
     with Tracker(calibration, path) as t:
         results = list(t)
@@ -118,7 +124,7 @@ def test_objects_are_tracked_in_millimetres_through_a_video(calibration, video) 
     assert line["frame"] == 3 and [o["id"] for o in line["objects"]] == [1, 2, 3]
 
 
-def test_max_frames_and_a_tracker_iterates_once(calibration, video) -> None:  # type: ignore[no-untyped-def]
+def test_max_frames_and_a_tracker_iterates_once(calibration: Calibration, video: Video) -> None:
     path, _, _ = video
     t = Tracker(calibration, path, max_frames=5)
     assert len(list(t)) == 5
@@ -133,14 +139,18 @@ def test_max_frames_and_a_tracker_iterates_once(calibration, video) -> None:  # 
     assert all(len(p) == 2 for p in t.tracks.values())
 
 
-def test_a_height_without_intrinsics_is_refused_before_the_first_frame(calibration, video) -> None:  # type: ignore[no-untyped-def]
+def test_a_height_without_intrinsics_is_refused_before_the_first_frame(
+    calibration: Calibration, video: Video
+) -> None:
     path, _, _ = video
     # Not counted frame after frame as a failure: no frame could ever succeed.
     with pytest.raises(IntrinsicsError, match="needs camera intrinsics"):
         Tracker(calibration, path, height_mm=20.0)
 
 
-def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(
+    calibration: Calibration, video: Video, tmp_path: Path
+) -> None:
     _, truth, frames = video
     for k, frame in enumerate(frames[:8]):
         cv2.imwrite(str(tmp_path / f"frame{k:03d}.png"), frame)
@@ -154,7 +164,9 @@ def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(calibration, video, 
     check_tracks(results, truth, 0.15)
 
 
-def test_max_frames_counts_the_frames_read_failed_ones_too(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_max_frames_counts_the_frames_read_failed_ones_too(
+    calibration: Calibration, video: Video, tmp_path: Path
+) -> None:
     _, truth, frames = video
     for k, frame in enumerate(frames[:8]):
         cv2.imwrite(str(tmp_path / f"frame{k:03d}.png"), frame)
@@ -211,7 +223,9 @@ class FlakyCamera:
         self.inner.close()
 
 
-def test_a_camera_that_drops_out_is_reopened_with_back_off(calibration, video, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_a_camera_that_drops_out_is_reopened_with_back_off(
+    calibration: Calibration, video: Video, monkeypatch: pytest.MonkeyPatch
+) -> None:
     path, truth, _ = video
     FlakyCamera.opened = 0
     monkeypatch.setattr(tracker_module, "Camera", FlakyCamera)
@@ -228,7 +242,9 @@ def test_a_camera_that_drops_out_is_reopened_with_back_off(calibration, video, m
         assert max(gaps) < 0.15
 
 
-def test_giving_up_on_a_source_that_stays_away(calibration, video, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+def test_giving_up_on_a_source_that_stays_away(
+    calibration: Calibration, video: Video, monkeypatch: pytest.MonkeyPatch
+) -> None:
     path, _, _ = video
     FlakyCamera.opened = 0
     monkeypatch.setattr(FlakyCamera, "refuse", 10**6)
@@ -258,7 +274,13 @@ class LateCamera(FlakyCamera):
         self.fail_after, self.reads = 10**9, 0
 
 
-def test_a_stream_absent_at_start_is_waited_for(calibration, video, monkeypatch, caplog, tmp_path):  # type: ignore[no-untyped-def]
+def test_a_stream_absent_at_start_is_waited_for(
+    calibration: Calibration,
+    video: Video,
+    monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+    tmp_path: Path,
+) -> None:
     path, truth, _ = video
     LateCamera.opened, LateCamera.target = 0, str(path)
     monkeypatch.setattr(tracker_module, "Camera", LateCamera)
@@ -282,7 +304,9 @@ def test_a_stream_absent_at_start_is_waited_for(calibration, video, monkeypatch,
         Tracker(calibration, tmp_path / "missing.mp4")
 
 
-def test_stop_from_another_thread_ends_the_loop_cleanly(calibration, video) -> None:  # type: ignore[no-untyped-def]
+def test_stop_from_another_thread_ends_the_loop_cleanly(
+    calibration: Calibration, video: Video
+) -> None:
     path, _, _ = video
     t = Tracker(calibration, path)
     seen = []
@@ -300,7 +324,7 @@ def _rss_bytes() -> int:
 
 
 @pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="needs /proc (Linux)")
-def test_ten_thousand_frames_without_memory_growth(tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_ten_thousand_frames_without_memory_growth(tmp_path: Path) -> None:
     # A small camera keeps the run short: 160 x 120, two parts, a 20-frame clip looped to
     # 10,000 frames in the video file.
     cam = synth.CameraModel(width=160, height=120, focal_px=150.0)
@@ -316,7 +340,7 @@ def test_ten_thousand_frames_without_memory_growth(tmp_path) -> None:  # type: i
         ]
         clip.append(synth.render_scene(cam, pose, board=None, objects=objs, seed=k).image)
     path = tmp_path / "long.avi"
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (160, 120), False)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 30.0, (160, 120), False)
     for k in range(10_000):
         writer.write(clip[k % 20])
     writer.release()
@@ -363,7 +387,9 @@ def _check_lines(lines: list[dict[str, Any]], truth: np.ndarray, tol_mm: float) 
             assert 0 < o["std_mm"] < 0.01
 
 
-def test_run_writes_one_line_per_frame_to_a_file_and_stdout(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_run_writes_one_line_per_frame_to_a_file_and_stdout(
+    calibration: Calibration, video: Video, tmp_path: Path
+) -> None:
     path, truth, _ = video
     calib = calibration.save(tmp_path / "calib.json")
     out = tmp_path / "positions.jsonl"
@@ -385,7 +411,9 @@ def test_run_writes_one_line_per_frame_to_a_file_and_stdout(calibration, video, 
     assert len(_lines(result.stdout)) == 5 and "\r" not in result.stderr
 
 
-def test_run_sends_to_a_tcp_controller_on_loopback(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_run_sends_to_a_tcp_controller_on_loopback(
+    calibration: Calibration, video: Video, tmp_path: Path
+) -> None:
     path, truth, _ = video
     calib = calibration.save(tmp_path / "calib.json")
     server = socket.create_server(("127.0.0.1", 0))
@@ -416,7 +444,9 @@ def test_run_sends_to_a_tcp_controller_on_loopback(calibration, video, tmp_path)
     assert figures["output"]["sent"] + figures["output"]["dropped"] == N_FRAMES
 
 
-def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(calibration, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(
+    calibration: Calibration, tmp_path: Path
+) -> None:
     calib = calibration.save(tmp_path / "calib.json")
     # A long source: 3,000 frames of one rendered scene.
     scene = synth.render_scene(
@@ -424,10 +454,10 @@ def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(calibration, t
         synth.PAPER_POSE,
         board=None,
         objects=moving_objects(0),
-        **synth.PAPER_EFFECTS,
+        **PAPER_EFFECTS,
     )
     path = tmp_path / "long.avi"
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30.0, (1280, 720), False)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 30.0, (1280, 720), False)
     for _ in range(3000):
         writer.write(scene.image)
     writer.release()
@@ -465,7 +495,9 @@ def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(calibration, t
     assert bad.returncode == 1 and "missing.mp4" in bad.stderr
 
 
-def test_run_max_frames_counts_the_frames_read(calibration, video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_run_max_frames_counts_the_frames_read(
+    calibration: Calibration, video: Video, tmp_path: Path
+) -> None:
     _, truth, frames = video
     folder = tmp_path / "frames"
     folder.mkdir()
@@ -484,7 +516,7 @@ def test_run_max_frames_counts_the_frames_read(calibration, video, tmp_path) -> 
     assert "frame001.png" in figures["first_fault"]
 
 
-def test_run_whose_every_frame_fails_exits_1_with_the_reason(video, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_run_whose_every_frame_fails_exits_1_with_the_reason(video: Video, tmp_path: Path) -> None:
     path, _, _ = video
     # A calibration from another camera position: its horizon crosses these frames at
     # y = 400 px, and one of the parts is always below it (it sees no point of the plane
