@@ -33,11 +33,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from report import cpu_model, table_lines
 
 from planarcal import synth
-from planarcal.board import CircleGridBoard
-from planarcal.calibration import Calibration
-from planarcal.detect import detect_board
-from planarcal.intrinsics import calibrate_camera
-from planarcal.objects import locate_objects
+from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.calibration import Calibration
+from planarcal.calib.detect import detect_board
+from planarcal.camera.intrinsics import calibrate_camera
+from planarcal.live.objects import locate_objects
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 REAL = SHARED / "data" / "real" / "boofcv-circle-regular"

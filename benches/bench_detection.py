@@ -66,8 +66,8 @@ from numpy.typing import NDArray
 
 import planarcal
 from planarcal import synth
-from planarcal.board import CircleGridBoard
-from planarcal.detect import BoardDetection, detect_board
+from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.detect import BoardDetection, detect_board
 from planarcal.errors import BoardError, BoardNotFoundError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -36,9 +36,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from report import cpu_model, load_average, table_lines
 
 from planarcal import synth
-from planarcal.calibration import Calibration
-from planarcal.detect import detect_board
-from planarcal.tracker import Tracker
+from planarcal.calib.calibration import Calibration
+from planarcal.calib.detect import detect_board
+from planarcal.live.tracker import Tracker
 
 DISTINCT = 40
 

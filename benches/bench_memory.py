@@ -11,7 +11,7 @@ No tracemalloc: it slows the loop too much.
 It prints each sample's RSS and its change since the first sample after the warm-up (frame
 1,000: decoder buffers, caches and the allocator's arenas have settled by then), and the
 growth between frame 1,000 and the last frame, in MiB and in bytes per frame. Target: less
-than 4 MiB between frame 1,000 and the end (the 160 x 120 test in tests/test_tracker.py
+than 4 MiB between frame 1,000 and the end (the 160 x 120 test in tests/live/test_tracker.py
 asks the same of 10,000 small frames).
 
 Run: python benches/bench_memory.py [--frames 10000] [--every 500] [--markdown]
@@ -36,9 +36,9 @@ from bench_loop import make_video
 from report import cpu_model, load_average, table_lines
 
 from planarcal import synth
-from planarcal.calibration import Calibration
-from planarcal.detect import detect_board
-from planarcal.tracker import Tracker
+from planarcal.calib.calibration import Calibration
+from planarcal.calib.detect import detect_board
+from planarcal.live.tracker import Tracker
 
 WARMUP = 1_000
 """Frames before the baseline sample: growth is measured from here to the end."""

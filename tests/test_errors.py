@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import planarcal as pc
-import planarcal.cv
 import planarcal.errors
-import planarcal.outputs
+import planarcal.homography.opencv
+import planarcal.live.outputs
 
 # Every exception class planarcal exports, from the package and from planarcal.errors.
 EXPORTED = sorted(
@@ -71,12 +71,15 @@ def test_the_argument_error_is_not_a_homography_error() -> None:
 
 
 def test_names_stay_importable_where_they_were() -> None:
-    assert planarcal.outputs.OutputError is pc.OutputError
-    assert planarcal.cv.OpenCVCompatibleError is pc.OpenCVCompatibleError
-    assert planarcal.cv.OpenCVCompatiblePointAtInfinityError is (
+    assert planarcal.live.outputs.OutputError is pc.OutputError
+    assert planarcal.homography.opencv.OpenCVCompatibleError is pc.OpenCVCompatibleError
+    assert planarcal.homography.opencv.OpenCVCompatiblePointAtInfinityError is (
         pc.OpenCVCompatiblePointAtInfinityError
     )
-    assert planarcal.cv.OpenCVCompatibleArgumentError is pc.OpenCVCompatibleArgumentError
+    assert (
+        planarcal.homography.opencv.OpenCVCompatibleArgumentError
+        is pc.OpenCVCompatibleArgumentError
+    )
     for cls in (
         pc.OpenCVCompatibleError,
         pc.OpenCVCompatiblePointAtInfinityError,
@@ -196,7 +199,7 @@ def test_the_python_layer_raises_into_the_same_root() -> None:
         pc.load_image("/nonexistent/board.png")
     assert isinstance(info.value, pc.ImageError)
     with pytest.raises(pc.Error) as info:
-        planarcal.outputs.open_output("tcp://localhost")
+        planarcal.live.outputs.open_output("tcp://localhost")
     assert isinstance(info.value, pc.OutputError)
     with pytest.raises(pc.Error) as info:
         pc.findHomography(SRC, DST, 99)

@@ -24,24 +24,10 @@ import os as _os
 
 from planarcal import _core
 from planarcal._core import __version__
-from planarcal.board import CircleGridBoard
-from planarcal.calibration import Calibration, CalibrationSummary, LensCandidate, LensModel
-from planarcal.capture import Camera
-from planarcal.cv import (
-    LMEDS,
-    RANSAC,
-    RHO,
-    USAC_ACCURATE,
-    USAC_DEFAULT,
-    USAC_FAST,
-    USAC_FM_8PTS,
-    USAC_MAGSAC,
-    USAC_PARALLEL,
-    USAC_PROSAC,
-    findHomography,
-    perspectiveTransform,
-)
-from planarcal.detect import BoardDetection, detect_board
+from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.calibration import Calibration, CalibrationSummary, LensCandidate, LensModel
+from planarcal.calib.detect import BoardDetection, detect_board
+from planarcal.camera.intrinsics import CameraIntrinsics, calibrate_camera
 from planarcal.errors import (
     ArgumentError,
     BoardError,
@@ -71,17 +57,31 @@ from planarcal.homography import (
     reprojection_stats,
     transform_points,
 )
-from planarcal.images import load_image
-from planarcal.intrinsics import CameraIntrinsics, calibrate_camera
-from planarcal.objects import DetectedObject, detect_objects, locate_objects
-from planarcal.robust import (
+from planarcal.homography.opencv import (
+    LMEDS,
+    RANSAC,
+    RHO,
+    USAC_ACCURATE,
+    USAC_DEFAULT,
+    USAC_FAST,
+    USAC_FM_8PTS,
+    USAC_MAGSAC,
+    USAC_PARALLEL,
+    USAC_PROSAC,
+    findHomography,
+    perspectiveTransform,
+)
+from planarcal.homography.robust import (
     RobustMethod,
     RobustResult,
     StopReason,
     estimate_homography_robust,
     estimate_homography_robust_batch,
 )
-from planarcal.tracker import FrameResult, TrackedObject, Tracker
+from planarcal.images import load_image
+from planarcal.live.capture import Camera
+from planarcal.live.objects import DetectedObject, detect_objects, locate_objects
+from planarcal.live.tracker import FrameResult, TrackedObject, Tracker
 
 # A child forked after the thread pool started must not use it (its threads did not survive
 # the fork): the core then runs every batch on the calling thread.

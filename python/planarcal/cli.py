@@ -15,20 +15,22 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from planarcal import __version__, demo, run
-from planarcal.board import LAYOUTS, CircleGridBoard
-from planarcal.calibration import Calibration
-from planarcal.capture import Camera
-from planarcal.detect import detect_board
-from planarcal.drawing import draw_objects, png_bytes
+from planarcal import __version__
+from planarcal.calib.board import LAYOUTS, CircleGridBoard
+from planarcal.calib.calibration import Calibration
+from planarcal.calib.detect import detect_board
+from planarcal.camera.intrinsics import CameraIntrinsics, calibrate_camera
 from planarcal.errors import BoardError, BoardNotFoundError
 from planarcal.files import atomic_write
 from planarcal.homography import SOLVERS
 from planarcal.images import load_image
-from planarcal.intrinsics import CameraIntrinsics, calibrate_camera
-from planarcal.objects import locate_objects
-from planarcal.printable import CHECK_BAR_MM, PrintLayout, pitch_meaning, write_board
+from planarcal.live import run
+from planarcal.live.capture import Camera
+from planarcal.live.objects import locate_objects
 from planarcal.report import summary_json, summary_text, write_detection_failure, write_report
+from planarcal.report.drawing import draw_objects, png_bytes
+from planarcal.report.printable import CHECK_BAR_MM, PrintLayout, pitch_meaning, write_board
+from planarcal.synth import demo
 
 # Errors the commands report in one line; anything else is a bug and keeps its traceback.
 _EXPECTED: tuple[type[BaseException], ...] = (ValueError, OSError)

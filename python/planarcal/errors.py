@@ -113,7 +113,7 @@ class ImageError(Error, ValueError):
 class BoardNotFoundError(Error, ValueError):
     """The image does not show the board: says what was seen and what to try.
 
-    ``diagnostics`` (a :class:`planarcal.detect.DetectionDiagnostics`, or None) holds what the
+    ``diagnostics`` (a :class:`planarcal.calib.detect.DetectionDiagnostics`, or None) holds what the
     search saw: the blobs of each polarity and each candidate grid with why it was refused;
     ``calibrate --report`` draws it."""
 

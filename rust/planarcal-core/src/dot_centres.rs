@@ -1,5 +1,5 @@
 //! Sub-pixel centres of a board's dark dots from their grey levels, every dot in one call: the
-//! per-dot work of board detection (planarcal.dot_centres), which in Python cost about 1.5 ms
+//! per-dot work of board detection (planarcal.calib.dot_centres), which in Python cost about 1.5 ms
 //! a dot.
 //!
 //! Each dot's centre is the centroid of its darkness, 1 - pixel / background, divided by the

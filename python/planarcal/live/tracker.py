@@ -1,0 +1,484 @@
+"""The production loop: frames in, object positions in millimetres out, for hours.
+
+``Tracker(calibration, source)`` reads frames from a camera, stream, video file or image
+folder (``planarcal.Camera``), finds the objects in each (``detect_objects``), maps all of a
+frame's centroids to the plane in one call into the Rust core (with their 1-sigma
+uncertainty), and gives each object an ID that it keeps from frame to frame while it stays in
+view. Iterating the tracker yields one ``FrameResult`` per frame.
+
+It does not stop on a bad frame:
+
+* a frame that cannot be decoded, or one whose size differs from the source's, is counted
+  (``corrupt``) and skipped;
+* a camera or stream that stops delivering (unplugged, a stalled network), or that is not
+  there yet when the tracker starts (still booting), is opened again with exponential
+  back-off (``reconnects``), for as long as it takes, unless ``max_reconnect_s`` says
+  otherwise (a file or folder that cannot be opened fails at once);
+* a frame whose processing fails (a detector error) is counted (``failed``) and skipped.
+
+Each fault is logged (logger ``planarcal.live.tracker``; repeated faults at their 1st, 2nd, 4th,
+8th, ... occurrence, so a stream of bad frames does not flood the log).
+
+It does stop on a source whose frames are not of the size the calibration was made on: that
+is a mistake of setup, not a bad frame, and every frame would map to the wrong millimetres.
+``FrameSizeError`` (naming both sizes) is raised by the constructor when the source is open,
+else by the iteration at the first such frame (a camera that comes back at another
+resolution).
+
+Reading runs on its own thread, a couple of frames ahead, so decoding overlaps with
+processing (OpenCV releases the GIL while it decodes and filters; the core releases it while
+it measures a frame's outlines, the bulk of its work).
+With a live source, frames that arrive while the loop is still busy with an older one are
+dropped, the oldest first, and counted (``dropped``): a robot wants the newest positions.
+With a file or folder nothing is dropped: the reader waits for the loop.
+
+IDs: nearest-neighbour association in world coordinates. Each object of a frame takes the ID
+of the nearest track of the previous frames within ``max_jump_mm``, closest pairs first;
+objects left over start new tracks; a track unseen for more than ``max_missing`` frames ends.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import logging
+import math
+import os
+import queue
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal import _core
+from planarcal.calib.calibration import Calibration
+from planarcal.errors import CameraError, FrameSizeError
+from planarcal.live.capture import Camera, Frame
+from planarcal.live.objects import _detect, detect_objects
+
+F64 = NDArray[np.float64]
+
+__all__ = ["FrameResult", "LoopStats", "TrackedObject", "Tracker"]
+
+_log = logging.getLogger("planarcal.live.tracker")
+
+# The options detect_objects takes (its keyword arguments).
+_DETECT_OPTIONS = frozenset(inspect.signature(detect_objects).parameters) - {"image"}
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class TrackedObject:
+    """One object in one frame."""
+
+    id: int
+    """Stable while the object stays in view (1, 2, ... in order of first appearance)."""
+    centroid_px: tuple[float, float]
+    world_mm: tuple[float, float]
+    std_mm: float
+    """The calibration's 1-sigma uncertainty of world_mm (RMS distance, mm)."""
+    area_px: float
+
+
+@dataclasses.dataclass(frozen=True, slots=True, eq=False)
+class FrameResult:
+    """One frame's objects: arrays with a row per object, in the detector's reading order
+    (rows from the top); ``objects`` and the JSON line give them by ID."""
+
+    index: int
+    """0-based position of the frame in the source (skipped frames keep their numbers)."""
+    timestamp: float
+    """When the frame was read, seconds since the epoch (time.time())."""
+    ids: NDArray[np.int64]
+    centroids_px: F64
+    """(n, 2) px."""
+    world_mm: F64
+    """(n, 2) mm on the plane."""
+    std_mm: F64
+    """The calibration's 1-sigma uncertainty of each world_mm (RMS distance, mm)."""
+    areas_px: F64
+
+    @property
+    def objects(self) -> tuple[TrackedObject, ...]:
+        """The frame's objects, ordered by ID (built on each access: the loop itself, and
+        to_json, work from the arrays)."""
+        order = np.argsort(self.ids, kind="stable")
+        return tuple(
+            map(
+                TrackedObject,
+                self.ids[order].tolist(),
+                map(tuple, self.centroids_px[order].tolist()),
+                map(tuple, self.world_mm[order].tolist()),
+                self.std_mm[order].tolist(),
+                self.areas_px[order].tolist(),
+            )
+        )
+
+    def to_json(self) -> str:
+        """One compact JSON line (no newline): frame, t, and each object's id, px, mm,
+        std_mm, by ID (positions to 1e-3 px and 1e-4 mm)."""
+        return _core.frame_json(
+            self.index, self.timestamp, self.ids, self.centroids_px, self.world_mm, self.std_mm
+        )
+
+
+@dataclasses.dataclass
+class LoopStats:
+    """What the loop did so far."""
+
+    read: int = 0
+    """Frames taken from the source: processed, failed, corrupt or dropped."""
+    frames: int = 0
+    """Frames processed and yielded."""
+    objects: int = 0
+    """Objects located, over all frames."""
+    corrupt: int = 0
+    """Frames that could not be decoded or had the wrong size."""
+    failed: int = 0
+    """Frames whose processing raised (counted, skipped)."""
+    dropped: int = 0
+    """Frames of a live source dropped because the loop was busy."""
+    reconnects: int = 0
+    """Times the source was reopened after it stopped delivering."""
+    started: float = dataclasses.field(default_factory=time.monotonic)
+    stage_s: dict[str, float] = dataclasses.field(
+        default_factory=lambda: {"read": 0.0, "detect": 0.0, "map": 0.0, "track": 0.0}
+    )
+    """Seconds spent in each stage (read: waiting for the reader thread)."""
+
+    @property
+    def elapsed_s(self) -> float:
+        return time.monotonic() - self.started
+
+    @property
+    def fps(self) -> float:
+        e = self.elapsed_s
+        return self.frames / e if e > 0 else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {k: v for k, v in dataclasses.asdict(self).items() if k != "started"}
+        out["elapsed_s"] = round(self.elapsed_s, 3)
+        out["fps"] = round(self.fps, 2)
+        out["stage_s"] = {k: round(v, 4) for k, v in self.stage_s.items()}
+        return out
+
+
+class _End:
+    """The reader's last word: the source ended, or gave up with `error`."""
+
+    def __init__(self, error: BaseException | None = None) -> None:
+        self.error = error
+
+
+class Tracker:
+    """Frames from ``source`` -> objects in millimetres, per frame; see the module docstring.
+
+    Args:
+        calibration: a Calibration (or a path to a calibration file).
+        source: a device index, stream URL, video file, image folder, or an open Camera.
+        height_mm: the objects' height above the plane (their tops are located where they
+            are; needs a calibration with intrinsics).
+        max_jump_mm: the farthest an object may move between frames and keep its ID.
+        max_missing: frames an object may go unseen and keep its ID.
+        max_frames: stop after reading this many frames from the source, whatever became of
+            them (processed, failed, corrupt or dropped; None: until the source ends or
+            stop()).
+        max_reconnect_s: give up reopening a source that stopped after this long (None:
+            never; a file or folder is never reopened).
+        detect_options: passed to detect_objects (min_area_px, blur_sigma, mask, ...).
+        timeout_s: the Camera's timeout for each blocking step.
+
+    Raises:
+        FrameSizeError: the source's frames are not of the size the calibration was made on.
+        IntrinsicsError: a height_mm with a calibration made without camera intrinsics.
+    """
+
+    def __init__(
+        self,
+        calibration: Calibration | str | os.PathLike[str],
+        source: int | str | os.PathLike[str] | Camera,
+        *,
+        height_mm: float = 0.0,
+        max_jump_mm: float = 25.0,
+        max_missing: int = 5,
+        max_frames: int | None = None,
+        max_reconnect_s: float | None = None,
+        detect_options: dict[str, Any] | None = None,
+        timeout_s: float = 5.0,
+    ) -> None:
+        if not isinstance(calibration, Calibration):
+            calibration = Calibration.load(calibration)
+        self.calibration = calibration
+        for name, value in (("height_mm", height_mm), ("max_jump_mm", max_jump_mm)):
+            if not (isinstance(value, int | float) and math.isfinite(value)):
+                raise ValueError(f"{name} must be a finite number, got {value!r}")
+        if max_jump_mm <= 0:
+            raise ValueError(f"max_jump_mm must be > 0, got {max_jump_mm!r}")
+        if isinstance(max_missing, bool) or not isinstance(max_missing, int) or max_missing < 0:
+            raise ValueError(f"max_missing must be a whole number >= 0, got {max_missing!r}")
+        if max_frames is not None and (
+            isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 0
+        ):
+            raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
+        self.height_mm = float(height_mm)
+        self.max_jump_mm = float(max_jump_mm)
+        self.max_missing = max_missing
+        self.max_frames = max_frames
+        self.max_reconnect_s = max_reconnect_s
+        self.detect_options = dict(detect_options or {})
+        unknown = sorted(set(self.detect_options) - _DETECT_OPTIONS)
+        if unknown:
+            raise ValueError(
+                f"unknown detect_options {unknown}; detect_objects takes {sorted(_DETECT_OPTIONS)}"
+            )
+        # Checked before the source is opened: a height needs the camera's pose.
+        self._map = calibration._frame_mapper(self.height_mm)
+        self._frame_size = calibration.image_size
+        self.stats = LoopStats()
+        self._timeout_s = timeout_s
+        if isinstance(source, Camera):
+            self._camera: Camera | None = source
+            self._spec: int | str | os.PathLike[str] = source.source
+        else:
+            self._spec = source
+            try:
+                self._camera = Camera(source, timeout_s=timeout_s, color=False)
+            except CameraError as e:
+                if not _live_spec(source):
+                    raise
+                # A camera or stream that is not there yet: the reader waits for it as for
+                # one that dropped out.
+                _log.warning("%s; waiting for it", e)
+                self._camera = None
+        if self._camera is not None:
+            self._check_source_size(self._camera, opened_here=not isinstance(source, Camera))
+        self._live = _live_spec(self._spec) if self._camera is None else self._camera.live
+        self._ever_opened = self._camera is not None
+        self._stop = threading.Event()
+        # Bounded: the reader runs at most this many frames ahead of the loop.
+        self._queue: queue.Queue[tuple[int, float, Frame] | _End] = queue.Queue(maxsize=2)
+        self._reader: threading.Thread | None = None
+        self._tracks = _core.Tracks(self.max_jump_mm, max_missing)
+        self._closed = False
+        self.first_error: BaseException | None = None
+        """The first frame-level fault (a corrupt frame, a detector error), for logs."""
+        self.last_error: BaseException | None = None
+        """The most recent frame-level fault (a corrupt frame, a detector error), for logs."""
+
+    def _check_source_size(self, camera: Camera, *, opened_here: bool) -> None:
+        """FrameSizeError at once if the source's frames are not the calibration's size (a
+        camera this tracker opened is closed first)."""
+        try:
+            self.calibration.check_image_size(camera.resolution, what="frame")
+        except FrameSizeError:
+            if opened_here:
+                camera.close()
+            raise
+
+    # -- the loop --------------------------------------------------------------------------
+
+    def __iter__(self) -> Iterator[FrameResult]:
+        if self._reader is not None:
+            raise RuntimeError("a Tracker can be iterated once")
+        self.stats = LoopStats()
+        self._reader = threading.Thread(
+            target=self._read_loop, name="planarcal-reader", daemon=True
+        )
+        self._reader.start()
+        try:
+            while not self._stop.is_set():
+                t0 = time.perf_counter()
+                item = self._next_item()
+                self.stats.stage_s["read"] += time.perf_counter() - t0
+                if item is None:
+                    continue
+                if isinstance(item, _End):
+                    if item.error is not None:
+                        raise item.error
+                    break
+                index, stamp, frame = item
+                try:
+                    result = self.process(frame, index, stamp)
+                except FrameSizeError:
+                    raise  # not a bad frame: the source does not match the calibration
+                except (ValueError, ArithmeticError) as e:  # a frame the detector chokes on
+                    self.stats.failed += 1
+                    self._record_fault(e)
+                    _log_fault("frame %d failed: %s", self.stats.failed, index, e)
+                    continue
+                self.stats.frames += 1
+                self.stats.objects += len(result.objects)
+                yield result
+        finally:
+            self.close()
+
+    def process(self, frame: Frame, index: int = 0, timestamp: float | None = None) -> FrameResult:
+        """One frame's objects, tracked against the frames before it. FrameSizeError if the
+        frame is not of the size the calibration was made on."""
+        size = (frame.shape[1], frame.shape[0])
+        if self._frame_size is not None and size != self._frame_size:
+            self.calibration.check_image_size(size, what="frame")
+        stamp = time.time() if timestamp is None else timestamp
+        stage = self.stats.stage_s
+        t0 = time.perf_counter()
+        found = _detect(frame, outlines=False, **self.detect_options)
+        t1 = time.perf_counter()
+        stage["detect"] += t1 - t0
+        px = found.centroids
+        if len(px):
+            # One call maps the whole frame (and its uncertainty) in the core.
+            mm, std = self._map(px)
+        else:
+            mm, std = np.zeros((0, 2)), np.zeros(0)
+        t2 = time.perf_counter()
+        stage["map"] += t2 - t1
+        ids = self._tracks.update(mm)
+        result = FrameResult(index, stamp, ids, px, mm, std, found.areas)
+        stage["track"] += time.perf_counter() - t2
+        return result
+
+    @property
+    def tracks(self) -> dict[int, tuple[float, float]]:
+        """The live tracks: each ID's last world position, mm (an object unseen for up to
+        max_missing frames keeps its track)."""
+        ids, mm = self._tracks.live()
+        return dict(zip(ids.tolist(), map(tuple, mm.tolist()), strict=True))
+
+    def stop(self) -> None:
+        """Ends the iteration after the frame in hand (safe from a signal handler or another
+        thread)."""
+        self._stop.set()
+
+    def close(self) -> None:
+        """Stops the reader and releases the source. Idempotent."""
+        self._stop.set()
+        if self._closed:
+            return
+        self._closed = True
+        # Unblock a reader waiting to put a frame.
+        while True:
+            try:
+                self._queue.get_nowait()
+            except queue.Empty:
+                break
+        if self._reader is not None:
+            self._reader.join(timeout=self._timeout_s + 1.0)
+        if self._camera is not None:
+            self._camera.close()
+
+    def __enter__(self) -> Tracker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- reading (on the reader thread) ------------------------------------------------------
+
+    def _record_fault(self, error: BaseException) -> None:
+        """Keeps the first and the latest frame-level fault (from either thread)."""
+        if self.first_error is None:
+            self.first_error = error
+        self.last_error = error
+
+    def _next_item(self) -> tuple[int, float, Frame] | _End | None:
+        try:
+            return self._queue.get(timeout=0.1)
+        except queue.Empty:
+            return None  # wake up to look at the stop flag
+
+    def _put(self, item: tuple[int, float, Frame] | _End) -> None:
+        """Hands a frame to the loop: a live source drops the oldest waiting frame when the
+        loop is behind; a file waits (nothing is lost)."""
+        while not self._stop.is_set():
+            try:
+                self._queue.put(item, timeout=0.1)
+                return
+            except queue.Full:
+                if self._live and not isinstance(item, _End):
+                    try:
+                        self._queue.get_nowait()
+                        self.stats.dropped += 1
+                    except queue.Empty:
+                        pass
+
+    def _read_loop(self) -> None:
+        index = 0  # frames read so far (the next frame's index)
+        try:
+            while not self._stop.is_set():
+                if self.max_frames is not None and index >= self.max_frames:
+                    self._put(_End())
+                    return
+                camera = self._camera
+                if camera is None or camera.closed:
+                    camera = self._reopen()
+                    if camera is None:
+                        return
+                try:
+                    frame = camera.read()
+                except CameraError as e:
+                    if camera.ended:
+                        self._put(_End())
+                        return
+                    if camera.closed:
+                        continue  # stopped delivering: reopen with back-off
+                    # A frame that cannot be decoded or has the wrong size: skip it.
+                    self.stats.read += 1
+                    self.stats.corrupt += 1
+                    self._record_fault(e)
+                    _log_fault("frame %d skipped: %s", self.stats.corrupt, index, e)
+                    index += 1
+                    continue
+                self.stats.read += 1
+                self._put((index, time.time(), frame))
+                index += 1
+        except BaseException as e:  # never die silently: the loop re-raises it
+            self._put(_End(e))
+
+    def _reopen(self) -> Camera | None:
+        """Reopens the source with exponential back-off; None if stopped or out of time."""
+        if not self._live:
+            self._put(_End())
+            return None
+        delay, start = 0.1, time.monotonic()
+        while not self._stop.is_set():
+            try:
+                self._camera = Camera(self._spec, timeout_s=self._timeout_s, color=False)
+                again = "again " if self._ever_opened else ""
+                self.stats.reconnects += self._ever_opened
+                self._ever_opened = True
+                _log.warning(
+                    "%s open %safter %.1f s", self._camera.label, again, time.monotonic() - start
+                )
+                return self._camera
+            except CameraError as e:
+                waited = time.monotonic() - start
+                _log.warning("%s; retrying in %.1f s", e, delay)
+                if self.max_reconnect_s is not None and waited >= self.max_reconnect_s:
+                    self._put(
+                        _End(
+                            CameraError(
+                                f"gave up reopening {self._spec!r} after {waited:.1f} s: {e}"
+                            )
+                        )
+                    )
+                    return None
+                self._stop.wait(delay)
+                delay = min(2 * delay, 5.0)
+        return None
+
+    # -- tracking ----------------------------------------------------------------------------
+
+
+def _live_spec(source: object) -> bool:
+    """A camera device index or a stream's URL (as Camera tells them from paths)."""
+    if isinstance(source, bool):
+        return False
+    return isinstance(source, int | np.integer) or (isinstance(source, str) and "://" in source)
+
+
+def _log_fault(message: str, count: int, *args: object) -> None:
+    """Logs the 1st, 2nd, 4th, 8th, ... fault of a kind (with how many so far)."""
+    if count & (count - 1) == 0:
+        _log.warning(message + " (%d so far)", *args, count)
