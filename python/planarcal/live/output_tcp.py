@@ -1,0 +1,516 @@
+"""``TcpOutput``: a TCP client that streams lines to a robot controller from a background
+writer thread, so that the loop never waits on the network: a bounded buffer that keeps the
+newest lines, reconnection with back-off, and fresh data (never half a line) after a
+reconnect.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import errno
+import itertools
+import os
+import selectors
+import socket
+import struct
+import threading
+import time
+
+from planarcal.errors import OutputError
+from planarcal.live.output_sink import Output, OutputStats
+from planarcal.live.output_spec import check_port, netloc
+
+__all__ = ["TcpOutput"]
+
+
+# At most this much of the buffer is handed to the socket at once: what has been handed over
+# is committed (a line once started must be finished on that connection), so a smaller batch
+# leaves more of the buffer free to drop its oldest lines for newer ones behind a slow reader.
+_BATCH_BYTES = 64 * 1024
+
+# A connection that lasted at least this long counts as a success: the back-off starts over.
+# Shorter ones (a controller that accepts and hangs up at once) keep the delay growing.
+_STABLE_CONNECTION_S = 1.0
+
+
+class _Batch:
+    """Lines joined for one connection. What has been handed to the socket is committed: a
+    line once started must be finished on that connection, or the reader sees half of it."""
+
+    __slots__ = ("data", "done", "ends", "offset")
+
+    def __init__(self, lines: list[bytes]) -> None:
+        self.data = memoryview(b"".join(lines))
+        self.ends = list(itertools.accumulate(len(line) for line in lines))
+        """Where each line ends in ``data``."""
+        self.done = 0
+        """Lines fully written."""
+        self.offset = 0
+        """Bytes written."""
+
+    @property
+    def written(self) -> bool:
+        """True once every byte is written."""
+        return self.offset == len(self.data)
+
+    def rest(self) -> memoryview:
+        """The bytes not written yet."""
+        return self.data[self.offset :]
+
+    def advance(self, written: int) -> tuple[int, int]:
+        """Records `written` more bytes as written; returns how many lines that completed,
+        and their size in bytes."""
+        self.offset += written
+        finished = self.done
+        while finished < len(self.ends) and self.ends[finished] <= self.offset:
+            finished += 1
+        if finished == self.done:
+            return 0, 0
+        start = self.ends[self.done - 1] if self.done else 0
+        lines, size = finished - self.done, self.ends[finished - 1] - start
+        self.done = finished
+        return lines, size
+
+
+class TcpOutput(Output):
+    """A TCP client that streams lines to a robot controller listening at HOST:PORT, without
+    ever making the loop wait for it.
+
+    ``send`` appends the line to a bounded buffer in memory and returns, in microseconds;
+    a background (daemon) thread does all the socket work:
+
+    * Connecting, in the background, with exponential back-off (``backoff_initial`` doubling
+      to ``backoff_max``) for as long as the controller is absent. Lines sent while there is no
+      connection are dropped on the spot (``send`` returns False): a robot wants the positions
+      of now, not a backlog from before it was listening. ``wait_connected`` lets the loop wait
+      for the controller at start-up if it wants to.
+    * Writing, non-blocking, in batches of up to 64 KiB. When the controller reads more slowly
+      than lines come (or stops reading, and the kernel's buffers fill), the buffer holds at
+      most ``max_pending_lines`` lines and ``max_pending_bytes`` bytes; beyond that the OLDEST
+      pending lines are dropped and counted, so what gets through is as fresh as it can be.
+      The socket's own send buffer is capped too (``send_buffer``), because stale data
+      queues there as well; what the controller's receive buffer holds is beyond our reach, so
+      a controller that pauses should drain its socket and act on the last line.
+    * Detecting a lost connection: the peer closing or resetting it, an error from the kernel,
+      or no byte accepted for ``stall_timeout`` seconds while lines wait (a controller that
+      hangs; TCP_USER_TIMEOUT is set to the same, where the system has it, for a peer that
+      vanished). A stalled connection is reset rather than closed gracefully so the stale
+      backlog in it is discarded rather than delivered; then the sink reconnects.
+    * Freshness after a reconnect: when a connection is lost, everything still pending,
+      including the rest of a line that was half written, is dropped and counted; the next
+      connection starts on a line boundary with lines sent after it was established. A line is
+      never split across connections.
+
+    ``close`` writes what is pending for up to ``flush_timeout`` seconds, closes the
+    connection gracefully and stops the thread; what could not be written is counted as
+    dropped."""
+
+    def __init__(
+        self,
+        host: str,
+        port: int,
+        *,
+        max_pending_lines: int = 256,
+        max_pending_bytes: int = 1 << 20,
+        backoff_initial: float = 0.1,
+        backoff_max: float = 5.0,
+        connect_timeout: float = 2.0,
+        stall_timeout: float | None = 5.0,
+        flush_timeout: float = 1.0,
+        send_buffer: int | None = 64 * 1024,
+    ) -> None:
+        check_port(port)
+        if not host:
+            raise OutputError("a TCP output needs a host")
+        for name, value in (
+            ("max_pending_lines", max_pending_lines),
+            ("max_pending_bytes", max_pending_bytes),
+        ):
+            if value < 1:
+                raise OutputError(f"{name} must be at least 1, not {value}")
+        for name, seconds in (
+            ("backoff_initial", backoff_initial),
+            ("backoff_max", backoff_max),
+            ("connect_timeout", connect_timeout),
+            ("stall_timeout", stall_timeout),
+        ):
+            if seconds is not None and not seconds > 0:
+                raise OutputError(f"{name} must be a positive number of seconds, not {seconds}")
+        if backoff_max < backoff_initial:
+            raise OutputError(
+                f"backoff_max ({backoff_max} s) is shorter than backoff_initial "
+                f"({backoff_initial} s)"
+            )
+        if not flush_timeout >= 0:
+            raise OutputError(f"flush_timeout must be >= 0 seconds, not {flush_timeout}")
+        if send_buffer is not None and send_buffer < 1:
+            raise OutputError(f"send_buffer must be at least 1 byte, not {send_buffer}")
+        super().__init__(f"tcp://{netloc(host, port)}")
+        self.host = host
+        self.port = port
+        self._max_lines = max_pending_lines
+        self._max_bytes = max_pending_bytes
+        self._backoff_initial = backoff_initial
+        self._backoff_max = backoff_max
+        self._connect_timeout = connect_timeout
+        self._stall_timeout = stall_timeout
+        self._flush_timeout = flush_timeout
+        self._send_buffer = send_buffer
+
+        # Shared with the writer thread, under self._lock.
+        self._pending: collections.deque[bytes] = collections.deque()
+        self._pending_bytes = 0
+        self._inflight_lines = 0  # taken by the writer, not yet fully written
+        self._connected = False
+        self._idle = False  # the writer waits for lines: send() must wake it
+        self._stop = False
+        self._stop_deadline = 0.0
+        self._connects = 0
+        self._attempts = 0
+        self._connected_event = threading.Event()
+
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+        self._thread = threading.Thread(
+            target=self._run, name=f"planarcal output {self.spec}", daemon=True
+        )
+        self._thread.start()
+
+    def wait_connected(self, timeout: float | None = None) -> bool:
+        """Waits until a connection is up (True) or `timeout` seconds have passed (False).
+        For a loop that would rather not drop its first frames before the controller is
+        there; sending never requires it."""
+        return self._connected_event.wait(timeout)
+
+    @property
+    def stats(self) -> OutputStats:
+        with self._lock:
+            return OutputStats(
+                sent=self._n_sent,
+                dropped=self._n_dropped,
+                bytes_sent=self._n_bytes,
+                errors=self._n_errors,
+                reconnects=max(self._connects - 1, 0),
+                connect_attempts=self._attempts,
+                connected=self._connected,
+                pending=len(self._pending) + self._inflight_lines,
+                broken=False,
+                last_error=self._last_error,
+            )
+
+    def _open_state(self, stats: OutputStats) -> str:
+        return "connected" if stats.connected else "not connected"
+
+    # --- the caller's side: microseconds, never a system call unless the writer sleeps ---
+
+    def _send(self, data: bytes) -> bool:
+        size = len(data)
+        with self._lock:
+            if self._closing or not self._connected:
+                return self._drop()
+            if size > self._max_bytes:
+                return self._drop(
+                    f"a line of {size:,} bytes is larger than max_pending_bytes "
+                    f"({self._max_bytes:,}); dropped"
+                )
+            pending = self._pending
+            pending.append(data)
+            self._pending_bytes += size
+            while len(pending) > self._max_lines or self._pending_bytes > self._max_bytes:
+                self._pending_bytes -= len(pending.popleft())
+                self._n_dropped += 1
+            wake = self._idle
+            self._idle = False
+        if wake:
+            self._wake()
+        return True
+
+    def _wake(self) -> None:
+        with contextlib.suppress(OSError):  # full (a wake-up is pending anyway) or closed
+            self._wake_w.send(b"\0")
+
+    def _close(self) -> None:
+        with self._lock:
+            self._stop = True
+            self._stop_deadline = time.monotonic() + self._flush_timeout
+        self._wake()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(self._flush_timeout + 0.5)
+        with self._lock:
+            # Only if the writer is stuck (in a slow name lookup): count what it left.
+            self._n_dropped += len(self._pending)
+            self._pending.clear()
+            self._pending_bytes = 0
+        if not self._thread.is_alive():
+            self._wake_r.close()
+            self._wake_w.close()
+
+    # --- the writer thread ---
+
+    def _run(self) -> None:
+        selector = selectors.DefaultSelector()
+        selector.register(self._wake_r, selectors.EVENT_READ)
+        delay = self._backoff_initial
+        try:
+            while not self._stop:
+                sock = self._connect(selector)
+                if sock is None:
+                    self._sleep(selector, delay)
+                    delay = min(delay * 2, self._backoff_max)
+                    continue
+                began = time.monotonic()
+                reason = self._serve(selector, sock)
+                self._disconnect(sock, reason)
+                if self._stop:
+                    break
+                if time.monotonic() - began >= _STABLE_CONNECTION_S:
+                    delay = self._backoff_initial  # reconnect at once: it was working
+                else:
+                    self._sleep(selector, delay)
+                    delay = min(delay * 2, self._backoff_max)
+        except Exception as e:  # a bug here must not pass silently: say it, stop accepting
+            with self._lock:
+                self._connected = False
+                self._n_errors += 1
+                self._last_error = f"the writer of {self.spec} failed: {e!r}"
+            raise
+        finally:
+            selector.close()
+            self._connected_event.clear()
+
+    def _sleep(self, selector: selectors.BaseSelector, seconds: float) -> None:
+        """Waits `seconds`, or less if close() is called."""
+        deadline = time.monotonic() + seconds
+        while not self._stop:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return
+            if selector.select(remaining):
+                self._drain_wake()
+
+    def _drain_wake(self) -> None:
+        with contextlib.suppress(OSError):
+            while self._wake_r.recv(4096):
+                pass
+
+    def _connect(self, selector: selectors.BaseSelector) -> socket.socket | None:
+        with self._lock:
+            self._attempts += 1
+        try:
+            infos = socket.getaddrinfo(self.host, self.port, type=socket.SOCK_STREAM)
+        except OSError as e:
+            self._error(f"cannot resolve the host of {self.spec}: {e.strerror or e}")
+            return None
+        failure = "no address"
+        for family, kind, proto, _, address in infos:
+            if self._stop:
+                return None
+            sock = socket.socket(family, kind, proto)
+            try:
+                sock.setblocking(False)
+                self._configure(sock)
+                code = sock.connect_ex(address)
+                if code in (errno.EINPROGRESS, errno.EWOULDBLOCK, errno.EALREADY, errno.EAGAIN):
+                    code = self._await_connect(selector, sock)
+            except OSError as e:
+                code = e.errno or errno.EIO
+            if code == 0:
+                with self._lock:
+                    self._connected = True
+                    self._connects += 1
+                self._connected_event.set()
+                return sock
+            sock.close()
+            if code < 0:  # close() was called
+                return None
+            failure = os.strerror(code)
+        self._error(f"cannot connect to {self.spec}: {failure}")
+        return None
+
+    def _await_connect(self, selector: selectors.BaseSelector, sock: socket.socket) -> int:
+        """The outcome of a non-blocking connect: 0, an errno, or -1 when closing."""
+        deadline = time.monotonic() + self._connect_timeout
+        selector.register(sock, selectors.EVENT_WRITE)
+        try:
+            while True:
+                if self._stop:
+                    return -1
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return errno.ETIMEDOUT
+                for key, _ in selector.select(remaining):
+                    if key.fileobj is sock:
+                        return sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+                    self._drain_wake()
+        finally:
+            selector.unregister(sock)
+
+    def _configure(self, sock: socket.socket) -> None:
+        """Low latency (no Nagle delay on small lines), a capped kernel buffer (stale data
+        queues there too), and dead-peer detection."""
+        options: list[tuple[int, int, int]] = [
+            (socket.IPPROTO_TCP, socket.TCP_NODELAY, 1),
+            (socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1),
+        ]
+        if self._send_buffer is not None:
+            options.append((socket.SOL_SOCKET, socket.SO_SNDBUF, self._send_buffer))
+        user_timeout = getattr(socket, "TCP_USER_TIMEOUT", None)
+        if user_timeout is not None and self._stall_timeout is not None:
+            options.append((socket.IPPROTO_TCP, user_timeout, int(self._stall_timeout * 1000)))
+        for level, option, value in options:
+            with contextlib.suppress(OSError):
+                sock.setsockopt(level, option, value)
+
+    def _error(self, message: str) -> None:
+        with self._lock:
+            self._n_errors += 1
+            self._last_error = message
+
+    def _serve(self, selector: selectors.BaseSelector, sock: socket.socket) -> str | None:
+        """Writes lines to `sock` until it fails or close() has been called and the buffer
+        is flushed. Returns why the connection is being given up, None for a clean close."""
+        selector.register(sock, selectors.EVENT_READ)
+        interest = selectors.EVENT_READ
+        batch: _Batch | None = None
+        last_progress = time.monotonic()
+        try:
+            while True:
+                if batch is None:
+                    batch, stopping = self._take_batch()
+                    if batch is not None:
+                        last_progress = time.monotonic()
+                    elif stopping:
+                        return None  # everything is written
+                if batch is not None:
+                    # Most of the time the socket takes it all at once: no need to wait.
+                    try:
+                        progressed = self._write(sock, batch)
+                    except OSError as e:
+                        return self._lost(e)
+                    if progressed:
+                        last_progress = time.monotonic()
+                        if batch.written:
+                            batch = None
+                            continue  # take the next batch straight away
+                want = selectors.EVENT_READ | (selectors.EVENT_WRITE if batch is not None else 0)
+                if want != interest:
+                    selector.modify(sock, want)
+                    interest = want
+                timeout, reason = self._wait_limit(batch is not None, last_progress)
+                if reason is None:
+                    reason = self._handle_events(selector, sock, timeout)
+                if reason is not None:
+                    return reason
+        finally:
+            selector.unregister(sock)
+
+    def _take_batch(self) -> tuple[_Batch | None, bool]:
+        """The oldest pending lines, up to _BATCH_BYTES (at least one line), as the next batch
+        (None when nothing is pending), and whether close() has been called."""
+        lines: list[bytes] = []
+        with self._lock:
+            pending = self._pending
+            size = 0
+            while pending and (not lines or size + len(pending[0]) <= _BATCH_BYTES):
+                line = pending.popleft()
+                lines.append(line)
+                size += len(line)
+            self._pending_bytes -= size
+            self._inflight_lines = len(lines)
+            self._idle = not lines
+            stopping = self._stop
+        return (_Batch(lines) if lines else None), stopping
+
+    def _write(self, sock: socket.socket, batch: _Batch) -> bool:
+        """Hands the socket as much of the batch as it takes without waiting and counts the
+        lines that are then complete. False when it took nothing (its buffer is full); an
+        OSError means the connection failed."""
+        try:
+            written = sock.send(batch.rest())
+        except BlockingIOError:
+            return False
+        lines, size = batch.advance(written)
+        if lines:
+            with self._lock:
+                self._n_sent += lines
+                self._n_bytes += size
+                self._inflight_lines -= lines
+        return True
+
+    def _wait_limit(self, writing: bool, last_progress: float) -> tuple[float | None, str | None]:
+        """How long the writer may wait for the socket (None: no limit), or why it gives the
+        connection up instead: no byte taken for stall_timeout while a batch waits, or the
+        flush_timeout of close() has run out."""
+        now = time.monotonic()
+        timeout: float | None = None
+        if writing and self._stall_timeout is not None:
+            timeout = last_progress + self._stall_timeout - now
+            if timeout <= 0:
+                return None, self._stalled(self._stall_timeout)
+        if self._stop:
+            left = self._stop_deadline - now
+            if left <= 0:
+                return None, (
+                    f"closing: {self.spec} did not take the last lines within "
+                    f"{self._flush_timeout:g} s"
+                )
+            timeout = left if timeout is None else min(timeout, left)
+        return timeout, None
+
+    def _handle_events(
+        self, selector: selectors.BaseSelector, sock: socket.socket, timeout: float | None
+    ) -> str | None:
+        """Waits up to `timeout` for the socket or a wake-up and handles what came; returns
+        why the connection is lost, if it is."""
+        for key, mask in selector.select(timeout):
+            if key.fileobj is self._wake_r:
+                self._drain_wake()
+            elif mask & selectors.EVENT_READ:
+                # The controller may talk back; we do not listen, but must see EOF.
+                try:
+                    received = sock.recv(65536)
+                except BlockingIOError:
+                    continue
+                except OSError as e:
+                    return self._lost(e)
+                if not received:
+                    return f"{self.spec} closed the connection"
+        return None
+
+    def _stalled(self, seconds: float) -> str:
+        return (
+            f"{self.spec} took no data for {seconds:g} s (the controller stopped "
+            "reading, or is gone); reset the connection"
+        )
+
+    def _lost(self, e: OSError) -> str:
+        if e.errno == errno.ETIMEDOUT and self._stall_timeout is not None:
+            # The kernel's TCP_USER_TIMEOUT fired: the same verdict as our own stall timer.
+            return self._stalled(self._stall_timeout)
+        return f"lost the connection to {self.spec}: {e.strerror or e}"
+
+    def _disconnect(self, sock: socket.socket, reason: str | None) -> None:
+        with self._lock:
+            self._connected = False
+            lost = len(self._pending) + self._inflight_lines
+            self._n_dropped += lost
+            self._pending.clear()
+            self._pending_bytes = 0
+            self._inflight_lines = 0
+            self._idle = False
+            if reason is not None:
+                self._n_errors += 1
+                self._last_error = reason + (f"; {lost:,} unsent lines dropped" if lost else "")
+        self._connected_event.clear()
+        if reason is None:
+            # Graceful: the controller reads every line we wrote, then end of stream.
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_WR)
+        else:
+            # Abortive: what is still queued towards the controller is stale, and may end in
+            # half a line; a reset discards it instead of delivering it.
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        sock.close()
