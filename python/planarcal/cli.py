@@ -20,7 +20,7 @@ from planarcal.calib.board import LAYOUTS, CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
 from planarcal.camera.intrinsics import CameraIntrinsics, calibrate_camera
-from planarcal.errors import BoardError, BoardNotFoundError
+from planarcal.errors import ArgumentError, BoardError, BoardNotFoundError
 from planarcal.files import atomic_write
 from planarcal.homography import SOLVERS
 from planarcal.images import load_image
@@ -188,7 +188,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 def _cmd_intrinsics(args: argparse.Namespace) -> int:
     board = _board(args)
     if len(args.images) < 3:
-        raise ValueError(
+        raise ArgumentError(
             f"give at least 3 images of the board, tilted differently ({len(args.images)} given)"
         )
     cam = calibrate_camera(
@@ -229,7 +229,7 @@ def _read_image(args: argparse.Namespace) -> Any:
     """The calibration image: a file, or the average of frames from a camera source."""
     if args.camera is None:
         if args.image is None:
-            raise ValueError("give an IMAGE file or --camera SOURCE")
+            raise ArgumentError("give an IMAGE file or --camera SOURCE")
         return load_image(args.image)
 
     source: int | str = int(args.camera) if args.camera.isdigit() else args.camera

@@ -207,7 +207,7 @@ def test_the_same_seed_gives_the_same_bits() -> None:
 DETERMINISM_SCRIPT = textwrap.dedent(
     """
     import hashlib, sys
-    sys.path.insert(0, {tests!r})
+    sys.path[:0] = [{here!r}, {tests!r}]
     import planarcal
     from test_robust import outlying
     digest = hashlib.sha256()
@@ -223,7 +223,8 @@ DETERMINISM_SCRIPT = textwrap.dedent(
 
 
 def test_results_do_not_depend_on_the_thread_count() -> None:
-    script = DETERMINISM_SCRIPT.format(tests=os.path.dirname(__file__))
+    here = os.path.dirname(__file__)
+    script = DETERMINISM_SCRIPT.format(here=here, tests=os.path.dirname(here))
     digests = set()
     for threads in ("1", "2"):
         env = dict(os.environ, RAYON_NUM_THREADS=threads)

@@ -26,7 +26,7 @@ import planarcal.live.tracker as tracker_module
 from planarcal import synth
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
-from planarcal.errors import CameraError, IntrinsicsError
+from planarcal.errors import ArgumentError, CameraError, IntrinsicsError
 from planarcal.homography import transform_points
 from planarcal.live.capture import Camera
 from planarcal.live.tracker import FrameResult, Tracker
@@ -130,9 +130,9 @@ def test_max_frames_and_a_tracker_iterates_once(calibration: Calibration, video:
     assert len(list(t)) == 5
     with pytest.raises(RuntimeError, match="once"):
         list(t)
-    with pytest.raises(ValueError, match="max_jump_mm"):
+    with pytest.raises(ArgumentError, match="max_jump_mm"):
         Tracker(calibration, path, max_jump_mm=0)
-    with pytest.raises(ValueError, match=r"unknown detect_options \['min_aera'\]"):
+    with pytest.raises(ArgumentError, match=r"unknown detect_options \['min_aera'\]"):
         Tracker(calibration, path, detect_options={"min_aera": 5})
     # Live tracks after the run: the three parts, at their last positions.
     assert sorted(t.tracks) == [1, 2, 3]

@@ -57,7 +57,7 @@ from planarcal.calib.grid_search import (
     outer_ring,
     place_board,
 )
-from planarcal.errors import BoardNotFoundError, DegenerateError
+from planarcal.errors import ArgumentError, BoardNotFoundError, DegenerateError
 from planarcal.homography import estimate_homography, reprojection_errors, transform_points
 from planarcal.images import as_grey
 
@@ -177,9 +177,9 @@ def detect_board(
     (otherwise refused as BoardTurnedError: usually ``--cols`` and ``--rows`` swapped).
     """
     if polarity not in ("auto", "dark", "light"):
-        raise ValueError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
+        raise ArgumentError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
     if not isinstance(board, CircleGridBoard):
-        raise ValueError(f"board must be a CircleGridBoard, got {type(board).__name__}")
+        raise ArgumentError(f"board must be a CircleGridBoard, got {type(board).__name__}")
     grey = as_grey(image)
     polarities: tuple[Literal["dark", "light"], ...] = (
         ("dark", "light") if polarity == "auto" else (polarity,)

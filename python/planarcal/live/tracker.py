@@ -55,7 +55,7 @@ from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal.calib.calibration import Calibration
-from planarcal.errors import CameraError, FrameSizeError
+from planarcal.errors import ArgumentError, CameraError, FrameSizeError
 from planarcal.live.capture import Camera, Frame
 from planarcal.live.objects import _detect, detect_objects
 
@@ -213,15 +213,15 @@ class Tracker:
         self.calibration = calibration
         for name, value in (("height_mm", height_mm), ("max_jump_mm", max_jump_mm)):
             if not (isinstance(value, int | float) and math.isfinite(value)):
-                raise ValueError(f"{name} must be a finite number, got {value!r}")
+                raise ArgumentError(f"{name} must be a finite number, got {value!r}")
         if max_jump_mm <= 0:
-            raise ValueError(f"max_jump_mm must be > 0, got {max_jump_mm!r}")
+            raise ArgumentError(f"max_jump_mm must be > 0, got {max_jump_mm!r}")
         if isinstance(max_missing, bool) or not isinstance(max_missing, int) or max_missing < 0:
-            raise ValueError(f"max_missing must be a whole number >= 0, got {max_missing!r}")
+            raise ArgumentError(f"max_missing must be a whole number >= 0, got {max_missing!r}")
         if max_frames is not None and (
             isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 0
         ):
-            raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
+            raise ArgumentError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
         self.height_mm = float(height_mm)
         self.max_jump_mm = float(max_jump_mm)
         self.max_missing = max_missing
@@ -230,7 +230,7 @@ class Tracker:
         self.detect_options = dict(detect_options or {})
         unknown = sorted(set(self.detect_options) - _DETECT_OPTIONS)
         if unknown:
-            raise ValueError(
+            raise ArgumentError(
                 f"unknown detect_options {unknown}; detect_objects takes {sorted(_DETECT_OPTIONS)}"
             )
         # Checked before the source is opened: a height needs the camera's pose.

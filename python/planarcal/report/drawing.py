@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal.errors import ImageError
 from planarcal.images import as_grey
 
 U8 = NDArray[np.uint8]
@@ -232,5 +233,5 @@ def png_bytes(image: U8) -> bytes:
     """The image encoded as PNG."""
     ok, buf = cv2.imencode(".png", image)
     if not ok:
-        raise ValueError("could not encode the image as PNG")
+        raise ImageError("could not encode the image as PNG")
     return bytes(buf.tobytes())
