@@ -29,21 +29,17 @@ Text widths are budgeted at 0.66 em per character (Courier's 0.6 plus 10 % for a
 viewer that substitutes another monospace font), heights at 0.8 em above and 0.25 em below
 the baseline, so the text stays inside the margins whatever font is substituted.
 
-Files are written atomically: the whole file is rendered in memory, written to a temporary
-file in the target's directory, flushed to disk and moved over the target with
-``os.replace``; on any failure the temporary file is removed and an existing target is left
-as it was.
+Files are written atomically (``planarcal.files.atomic_write``): the whole file is rendered
+in memory, then appears complete under its name or not at all, an existing target left as it
+was on any failure.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import errno
 import math
 import os
 import re
-import secrets
 import textwrap
 import zlib
 from collections.abc import Iterable, Sequence
@@ -56,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal.calib.board import CircleGridBoard
 from planarcal.errors import BoardError
+from planarcal.files import atomic_write
 
 __all__ = [
     "CHECK_BAR_MM",
@@ -811,38 +808,6 @@ def _pdf(drawing: _Drawing, board: CircleGridBoard) -> bytes:
     return bytes(out)
 
 
-def _write_atomically(path: Path, data: bytes) -> None:
-    """Write data to path through a temporary file in the same directory and os.replace."""
-    directory = path.parent
-    tmp: Path | None = None
-    try:
-        for _ in range(100):
-            candidate = directory / f".{path.name}.{secrets.token_hex(6)}.tmp"
-            try:
-                # 0o666 and the umask: the permissions a plain open() would give.
-                fd = os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-            except FileExistsError:
-                continue
-            tmp = candidate
-            break
-        else:  # pragma: no cover - 100 collisions of 48 random bits
-            raise FileExistsError(errno.EEXIST, "no free temporary name", str(directory))
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as e:
-        reason = e.strerror or str(e)
-        # OSError(errno, ...) is the errno's subclass (PermissionError, FileNotFoundError...).
-        raise OSError(e.errno, f"cannot write the printable board ({reason})", str(path)) from e
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):  # it vanished, or the directory did
-                os.unlink(tmp)
-
-
 # --------------------------------------------------------------------------- the entry point
 
 
@@ -908,7 +873,7 @@ def write_board(
         raise BoardError(_refusal(board, label, size, orientation, margin))
 
     data = _svg(drawing, board) if fmt == "svg" else _pdf(drawing, board)
-    _write_atomically(target, data)
+    atomic_write(target, data)
     return PrintLayout(
         path=target,
         format=fmt,
