@@ -1,0 +1,299 @@
+"""The calibration's summary, as text for people and as one JSON-ready object: the
+reprojection and leave-one-out errors, the lens model (its parameters, the models tried and
+why this one, the figures before and after it), the uncertainty the covariance predicts
+against the measured one, the printer-scale correction, and what the detection reported;
+and the residual line the detection figure carries."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal.calib.calibration import Calibration
+from planarcal.report.drawing import dot_flags, homography_residual_note
+from planarcal.report.fits import fitted_parameters, homography_alone
+from planarcal.report.mapping import max_displacement_px
+
+
+def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
+    """The summary as one JSON-ready object (NaN becomes null)."""
+    s = cal.summary()
+    out: dict[str, Any] = {
+        "n_points": s.n_points,
+        "solver": s.solver,
+        "refine": s.refine,
+        "mean_error_px": s.mean_px,
+        "max_error_px": s.max_px,
+        "min_error_px": s.min_px,
+        "rms_error_px": s.rms_px,
+        "loo_mean_error_mm": s.loo_mean_mm,
+        "loo_rms_error_mm": s.loo_rms_mm,
+        "loo_max_error_mm": s.loo_max_mm,
+        "max_abs_dx_mm": s.max_abs_dx_mm,
+        "max_abs_dy_mm": s.max_abs_dy_mm,
+        "loo_mean_error_px": s.loo_mean_px,
+        "predicted_loo_rms_error_mm": s.predicted_loo_rms_mm,
+        "loo_rms_measured_over_predicted": _ratio(s.loo_rms_mm, s.predicted_loo_rms_mm),
+        "lens_model": cal.lens_model,
+        "lens": _lens_json(cal),
+        "lens_note": cal.lens_note,
+        "lens_candidates": [c.to_dict() for c in cal.lens_candidates],
+        "lens_max_displacement_px": max_displacement_px(cal),
+    }
+    if cal.intrinsics is not None:
+        out["intrinsics"] = cal.intrinsics.to_dict()
+    if tuple(cal.world_scale) != (1.0, 1.0):
+        out["world_scale"] = list(cal.world_scale)
+    if cal.lens_model != "none":
+        before = homography_alone(cal)
+        out["before_after"] = {"before": _figures(before), "after": _figures(cal)}
+    if cal.board is not None:
+        out["board"] = cal.board.to_dict()
+    if cal.image_size is not None:
+        out["image_size_px"] = list(cal.image_size)
+    if detection is not None:
+        out["detection"] = _detection_json(detection)
+    return {k: _finite_or_none(v) for k, v in out.items()}
+
+
+def _detection_json(detection: Any) -> dict[str, Any]:
+    """The finder, the polarity and the pitch; and, when the detection carries them, the
+    dots not refined and the enlarged ones (1-based point numbers, as in the CSV), the
+    orientation and the warnings."""
+    out: dict[str, Any] = {
+        "method": detection.method,
+        "polarity": detection.polarity,
+        "pitch_px": detection.pitch_px,
+        "residual_rms_px": detection.residual_rms_px,
+    }
+    refined = dot_flags(detection, "refined")
+    if refined is not None:
+        out["n_not_refined"] = int((~refined).sum())
+        out["not_refined_points"] = _point_numbers(~refined)
+    enlarged = dot_flags(detection, "enlarged")
+    if enlarged is not None:
+        out["enlarged_points"] = _point_numbers(enlarged)
+    orientation = _orientation(detection)
+    if orientation is not None:
+        out["orientation"] = orientation
+        out["orientation_rule"] = getattr(detection, "orientation_rule", None)
+    warnings = _warnings(detection)
+    if warnings is not None:
+        out["warnings"] = list(warnings)
+    return out
+
+
+def _point_numbers(flags: NDArray[np.bool_]) -> list[int]:
+    """The 1-based numbers of the flagged points (the CSV's and the text's numbering)."""
+    return [int(k) + 1 for k in np.flatnonzero(flags)]
+
+
+def _orientation(detection: Any) -> str | None:
+    """How dot 0 was chosen: "origin marker", "ambiguous: <the rule applied>", or None when
+    the detection does not say."""
+    orientation = getattr(detection, "orientation", None)
+    if orientation is None:
+        return None
+    if orientation == "marker":
+        return "origin marker"
+    rule = getattr(detection, "orientation_rule", None)
+    return f"{orientation}: {rule}" if rule else str(orientation)
+
+
+def _warnings(detection: Any) -> tuple[str, ...] | None:
+    warnings = getattr(detection, "warnings", None)
+    return None if warnings is None else tuple(str(w) for w in warnings)
+
+
+def _finite_or_none(v: Any) -> Any:
+    """`v` with every non-finite float in it (nested in dicts, lists and tuples) as None,
+    and numpy numbers as Python ones."""
+    if isinstance(v, dict):
+        return {k: _finite_or_none(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_finite_or_none(x) for x in v]
+    if isinstance(v, np.generic):
+        v = v.item()
+    return None if isinstance(v, float) and not math.isfinite(v) else v
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b if math.isfinite(a) and math.isfinite(b) and b > 0 else math.nan
+
+
+def _figures(cal: Calibration) -> dict[str, Any]:
+    """The before / after figures of one fit."""
+    s = cal.summary()
+    return {
+        "lens_model": cal.lens_model,
+        "mean_error_px": s.mean_px,
+        "max_error_px": s.max_px,
+        "rms_error_px": s.rms_px,
+        "loo_mean_error_px": s.loo_mean_px,
+        "loo_mean_error_mm": s.loo_mean_mm,
+        "loo_rms_error_mm": s.loo_rms_mm,
+        "loo_max_error_mm": s.loo_max_mm,
+    }
+
+
+def _lens_json(cal: Calibration) -> dict[str, Any] | None:
+    lens = cal.lens
+    if lens is None:
+        return None
+    out = lens.to_dict()
+    out["fitted"] = fitted_parameters(lens)
+    return out
+
+
+def _lens_text(cal: Calibration) -> list[str]:
+    """The lens model's parameters, the models tried and the before / after figures."""
+    lines = []
+    lens = cal.lens
+    if lens is not None:
+        fitted = fitted_parameters(lens)
+        parts = [f"k1 = {lens.k1:.5f} +/- {lens.k1_std:.5f}"]
+        if "k2" in fitted:
+            parts.append(f"k2 = {lens.k2:.5f} +/- {lens.k2_std:.5f}")
+        cx, cy = lens.centre_px
+        if "centre" in fitted:
+            sx, sy = lens.centre_std_px
+            parts.append(f"centre ({cx:.2f} +/- {sx:.2f}, {cy:.2f} +/- {sy:.2f}) px")
+        else:
+            parts.append(f"centre ({cx:.1f}, {cy:.1f}) px (the image's, not fitted)")
+        lines.append(f"Lens model {lens.model}: " + ", ".join(parts))
+        lines.append(f"  (radius unit {lens.scale_px:.1f} px, the image's half-diagonal)")
+    elif cal.intrinsics is not None:
+        k = cal.intrinsics
+        coeffs = ", ".join(f"{v:.5g}" for v in k.dist_coeffs)
+        lines.append(
+            f"Lens: camera intrinsics, fx {k.fx:.1f} px, fy {k.fy:.1f} px, principal point "
+            f"({k.cx:.1f}, {k.cy:.1f}) px, distortion ({coeffs})"
+        )
+    reach = max_displacement_px(cal)
+    if math.isfinite(reach):
+        lines.append(
+            f"  the lens moves the image's pixels by up to {reach:.1f} px (at its border) from "
+            "where a pinhole camera would show them"
+        )
+    if cal.lens_candidates:
+        lines.append("Lens models tried (mean leave-one-out error in the image, px):")
+        for c in cal.lens_candidates:
+            loo = f"{c.loo_mean_px:8.4f}" if math.isfinite(c.loo_mean_px) else "       -"
+            lines.append(f"  {c.model:<6} {loo}  {c.verdict}")
+    if cal.lens_model != "none":
+        before, after = homography_alone(cal).summary(), cal.summary()
+        rows = (
+            ("reprojection error, mean (px)", before.mean_px, after.mean_px, ".3f"),
+            ("reprojection error, RMS (px)", before.rms_px, after.rms_px, ".3f"),
+            ("reprojection error, max (px)", before.max_px, after.max_px, ".3f"),
+            ("leave-one-out error, mean (mm)", before.loo_mean_mm, after.loo_mean_mm, ".4f"),
+            ("leave-one-out error, RMS (mm)", before.loo_rms_mm, after.loo_rms_mm, ".4f"),
+        )
+        lines.append(
+            f"Before / after the lens model: {'homography alone':>18} {cal.lens_model:>12}"
+        )
+        for name, b, a, fmt in rows:
+            lines.append(f"  {name:<31}{b:>18{fmt}} {a:>12{fmt}}")
+    return lines
+
+
+def _detection_text(detection: Any) -> list[str]:
+    """The detection's orientation, dots not refined, enlarged dots and warnings, as far as
+    it carries them."""
+    lines = []
+    orientation = _orientation(detection)
+    if orientation is not None:
+        lines.append(f"Orientation (which dot is the origin): {orientation}")
+    refined = dot_flags(detection, "refined")
+    if refined is not None:
+        n = len(refined)
+        if refined.all():
+            lines.append(f"Centres refined: all {n} dots")
+        else:
+            lines.append(
+                f"Centres refined: {int(refined.sum())} of {n} dots; not refined (a coarser "
+                f"centre kept): {_point_list(~refined)}"
+            )
+    enlarged = dot_flags(detection, "enlarged")
+    if enlarged is not None and enlarged.any():
+        lines.append(f"Enlarged dots: {_point_list(enlarged)}")
+    lines += [f"Warning: {w}" for w in _warnings(detection) or ()]
+    return lines
+
+
+def _point_list(flags: NDArray[np.bool_], most: int = 20) -> str:
+    """ "point 3" or "points 3, 17, 40" (1-based), the first `most` of a long list."""
+    numbers = _point_numbers(flags)
+    shown = ", ".join(str(k) for k in numbers[:most])
+    more = f" and {len(numbers) - most} more" if len(numbers) > most else ""
+    return f"point{'s' if len(numbers) > 1 else ''} {shown}{more}"
+
+
+def _model_phrase(cal: Calibration) -> str:
+    """Which model a calibration's residuals come from, as the report words it."""
+    if cal.lens_model == "none":
+        return "of the homography alone"
+    if cal.lens_model == "intrinsics":
+        return "with the camera intrinsics"
+    return f"with the lens model {cal.lens_model}"
+
+
+def residual_note(cal: Calibration) -> str:
+    """The detection figure's residual line: the homography alone's RMS residual through the
+    centres and, with a lens model, the chosen model's, each named (the same figures as the
+    summary's reprojection errors)."""
+    alone = cal if cal.lens_model == "none" else homography_alone(cal)
+    note = homography_residual_note(alone.stats.rms)
+    if cal.lens_model == "none":
+        return note + " (no lens model)"
+    return f"{note}; {_model_phrase(cal)}: {cal.stats.rms:.3f} px RMS"
+
+
+def summary_text(cal: Calibration, detection: Any = None) -> str:
+    """A readable summary of the calibration."""
+    s = cal.summary()
+    lines = []
+    if cal.board is not None:
+        b = cal.board
+        lines.append(f"Board: {b.describe()}")
+    if detection is not None:
+        w, h = detection.image_size
+        lines.append(
+            f"Found all {s.n_points} dots in the {w} x {h} image ({detection.method} finder, "
+            f"{detection.polarity} dots, {detection.pitch_px:.1f} px apart)"
+        )
+        lines += _detection_text(detection)
+    fit = f"{s.solver}" + (" + Levenberg-Marquardt" if s.refine else "")
+    lines += [
+        f"Homography: {fit}, from {s.n_points} points",
+        f"Lens: {cal.lens_note}",
+        *_lens_text(cal),
+        f"Reprojection error (px), {_model_phrase(cal)}: mean {s.mean_px:.3f}, "
+        f"RMS {s.rms_px:.3f}, max {s.max_px:.3f} (point {cal.stats.argmax + 1}), "
+        f"min {s.min_px:.3f}",
+        f"World coordinates after calibration: |dX| <= {s.max_abs_dx_mm:.3f} mm, "
+        f"|dY| <= {s.max_abs_dy_mm:.3f} mm",
+        f"Leave-one-out error (mm): mean {s.loo_mean_mm:.3f}, RMS {s.loo_rms_mm:.3f}, "
+        f"max {s.loo_max_mm:.3f}",
+        "  (each point predicted by a fit made without it: the accuracy to expect at points",
+        "  the calibration has not seen; the residuals above flatter the fit)",
+    ]
+    ratio = _ratio(s.loo_rms_mm, s.predicted_loo_rms_mm)
+    if math.isfinite(ratio):
+        lines += [
+            f"Uncertainty: the fit's covariance predicts a leave-one-out RMS of "
+            f"{s.predicted_loo_rms_mm:.4f} mm, measured {s.loo_rms_mm:.4f} mm "
+            f"(ratio {ratio:.2f})",
+            "  (near 1: the 1-sigma uncertainties reported are to be trusted; well above 1:",
+            "  the model misses something the residuals do not show as noise)",
+        ]
+    if tuple(cal.world_scale) != (1.0, 1.0):
+        sx, sy = cal.world_scale
+        lines.append(
+            f"World scale (printer's scale corrected): X x {sx:.5f}, Y x {sy:.5f} "
+            f"({100 * (sx - 1):+.2f} %, {100 * (sy - 1):+.2f} %)"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,164 @@
+"""The uncertainty figure: the 1-sigma position uncertainty (mm, from the fit's covariance)
+as a heat map over the working area on the plane, with where it doubles relative to the
+board's centre."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+
+from planarcal.arguments import F64
+from planarcal.calib.calibration import Calibration
+from planarcal.report.figure import new_figure, outline_mm, png
+from planarcal.report.mapping import MAP_ERRORS, mappable, masked
+
+
+def _working_region_px(cal: Calibration) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1): the image region around the board, extended by half the board's
+    size each way, clipped to the image."""
+    lo, hi = cal.image_points.min(axis=0), cal.image_points.max(axis=0)
+    half = 0.5 * (hi - lo)
+    lo, hi = lo - half, hi + half
+    if cal.image_size is not None:
+        w, h = cal.image_size
+        lo = np.maximum(lo, 0.0)
+        hi = np.minimum(hi, [w - 1.0, h - 1.0])
+    return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
+
+
+_DEGRADATION = (1.5, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0)
+"""The multiples of the board centre's uncertainty drawn as contour lines."""
+
+
+def uncertainty_figure(cal: Calibration) -> bytes:
+    """The 1-sigma position uncertainty (mm, from the fit's covariance) as a heat map over
+    the working area (the image region around the board, extended by half the board's size
+    each way and clipped to the image) on the plane, in mm, with the board's dots, contour
+    lines at multiples of the uncertainty at the board's centre and the line where it
+    doubles marked; as PNG bytes. Pixels with no place on the plane (beyond the lens
+    model's valid radius, past the horizon) are left blank."""
+    from matplotlib.colors import LogNorm, Normalize  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
+    from matplotlib.tri import Triangulation  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
+
+    fig = new_figure(11, 8.5)
+    ax = fig.add_subplot()
+    world = cal.world_points
+    centre_mm = 0.5 * (world.min(axis=0) + world.max(axis=0))
+    try:
+        _, centre_std = cal.image_to_world(cal.world_to_image(centre_mm), return_std=True)
+    except MAP_ERRORS as e:
+        ax.text(
+            0.5,
+            0.5,
+            textwrap.fill(f"No uncertainty map: {e}", 70),
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
+        ax.set_axis_off()
+        return png(fig)
+    x0, x1, y0, y1 = _working_region_px(cal)
+    nx = 201
+    ny = max(2, round(nx * (y1 - y0) / max(x1 - x0, 1e-9)))
+    gx, gy = np.meshgrid(np.linspace(x0, x1, nx), np.linspace(y0, y1, ny))
+    px = np.column_stack([gx.ravel(), gy.ravel()])
+
+    def mapped(p: F64) -> F64:
+        mm, std = cal.image_to_world(p, return_std=True)
+        return np.column_stack([mm, std])
+
+    out = np.full((len(px), 3), np.nan)
+    ok = mappable(cal, px)
+    out[ok] = masked(mapped, px[ok], 3)
+    # Near the plane's horizon a pixel maps ever farther away: keep the neighbourhood.
+    reach = 10.0 * max(float(np.ptp(world, axis=0).max()), 1.0)
+    out[np.hypot(*(out[:, :2] - centre_mm).T) > reach] = np.nan
+    valid = np.asarray(np.isfinite(out).all(axis=1), dtype=bool)
+    k = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
+    tris = np.concatenate(
+        [np.column_stack([k, k + 1, k + nx]), np.column_stack([k + 1, k + nx + 1, k + nx])]
+    )
+    tris = tris[valid[tris].all(axis=1)]
+    if not len(tris):
+        ax.text(
+            0.5,
+            0.5,
+            "No pixel of the working area maps onto the plane",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
+        ax.set_axis_off()
+        return png(fig)
+    xy = np.where(valid[:, None], out[:, :2], centre_mm)
+    std = np.where(valid, out[:, 2], 0.0)
+    tri = Triangulation(xy[:, 0], xy[:, 1], tris)
+    used = std[np.unique(tris)]
+    lo, hi = float(used.min()), float(used.max())
+    norm = LogNorm(lo, hi) if lo > 0 and hi > 8 * lo else Normalize(lo, hi)
+    pc = ax.tripcolor(tri, std, shading="gouraud", cmap="viridis", norm=norm)
+    bar = fig.colorbar(pc, ax=ax, label="1-sigma position uncertainty (mm)", shrink=0.85)
+    if isinstance(norm, LogNorm):
+        from matplotlib.ticker import FuncFormatter, LogLocator  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
+
+        bar.ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        bar.ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        bar.ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
+    c = float(centre_std)
+    if c > 0 and hi > lo:
+        levels = [m * c for m in _DEGRADATION if lo < m * c < hi]
+        if levels:
+            lines = ax.tricontour(tri, std, levels=levels, colors="w", linewidths=0.7)
+            ax.clabel(lines, fmt={v: f"x{v / c:g}" for v in levels}, fontsize=8)
+        if lo < 2 * c < hi:
+            ax.tricontour(tri, std, levels=[2 * c], colors="tab:red", linewidths=2.5)
+            ax.plot([], [], color="tab:red", lw=2.5, label=f"twice the centre's: {2 * c:.3g} mm")
+            where = "the red line marks where it doubles"
+        else:
+            where = f"it stays under twice that here (at most x{hi / c:.2f})"
+    else:
+        where = "no residual error to scale it by"
+    outline = outline_mm(cal)
+    ax.plot(outline[:, 0], outline[:, 1], color="w", lw=1.0, ls="--", label="board (outer dots)")
+    ax.scatter(
+        world[:, 0],
+        world[:, 1],
+        s=6,
+        color="k",
+        edgecolors="w",
+        linewidths=0.4,
+        label="board's dots",
+        zorder=3,
+    )
+    ax.plot(
+        [centre_mm[0]],
+        [centre_mm[1]],
+        "+",
+        color="tab:red",
+        ms=14,
+        mew=2,
+        label=f"board centre: {c:.3g} mm",
+        zorder=4,
+    )
+    ax.legend(
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.08),
+        ncols=4,
+        fontsize=9,
+        facecolor="0.75",
+        markerscale=1.5,
+    )
+    ax.set_aspect("equal")
+    ax.invert_yaxis()  # Y runs down the board, as printed
+    ax.set_xlabel("X (mm)")
+    ax.set_ylabel("Y (mm)")
+    clipped = ", clipped to the image" if cal.image_size is not None else ""
+    ax.set_title(
+        "1-sigma position uncertainty on the plane, from the fit's covariance (a measured "
+        "pixel's own noise adds to it)\n"
+        f"Working area: the board's image region extended by half its size each way{clipped}."
+        f"\n{c:.3g} mm at the board's centre; white contours at multiples of it; {where}",
+        fontsize=10,
+    )
+    return png(fig)

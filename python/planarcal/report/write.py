@@ -1,0 +1,46 @@
+"""The report directory: the tables and figures of a calibration, each file written
+atomically."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from planarcal.calib.calibration import Calibration
+from planarcal.files import atomic_write
+from planarcal.report.deviations import deviation_figure
+from planarcal.report.drawing import draw_detection, png_bytes
+from planarcal.report.lens import lens_figure
+from planarcal.report.points import points_csv
+from planarcal.report.summary import residual_note, summary_json
+from planarcal.report.uncertainty import uncertainty_figure
+
+
+def write_report(
+    cal: Calibration,
+    out_dir: str | os.PathLike[str],
+    *,
+    image: Any = None,
+    detection: Any = None,
+) -> list[Path]:
+    """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png and (with an
+    image and its detection) detection.png into `out_dir` (created if need be), each
+    atomically; returns the paths written."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = [
+        atomic_write(out / "points.csv", points_csv(cal, detection)),
+        atomic_write(
+            out / "summary.json",
+            json.dumps(summary_json(cal, detection), indent=2, allow_nan=False) + "\n",
+        ),
+        atomic_write(out / "deviations.png", deviation_figure(cal)),
+        atomic_write(out / "lens.png", lens_figure(cal, image=image)),
+        atomic_write(out / "uncertainty.png", uncertainty_figure(cal)),
+    ]
+    if image is not None and detection is not None:
+        drawn = draw_detection(image, detection, residual_note=residual_note(cal))
+        written.append(atomic_write(out / "detection.png", png_bytes(drawn)))
+    return written
