@@ -15,6 +15,7 @@ from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.errors import BoardError, ImageError
 from planarcal.synth import CameraModel, PlanePose, SceneObject, render_scene
+from planarcal.synth.dots import _board_to_table
 
 PAPER, INK, TABLE = 225.0, 35.0, 100.0
 
@@ -293,7 +294,7 @@ def test_marks_render_in_the_ink_and_are_no_truth() -> None:
     Light on dark they are printed in the (light) ink too."""
     board = CircleGridBoard(6, 6, 20.0, 13.2)
     camera = CameraModel(width=640, height=480, focal_px=900.0)
-    look = synth._board_to_table(np.array([[50.0, 50.0]]), (30.0, -20.0), 25.0)[0]
+    look = _board_to_table(np.array([[50.0, 50.0]]), (30.0, -20.0), 25.0)[0]
     pose = PlanePose(330.0, look_at_mm=(float(look[0]), float(look[1])))
     marks = synth.printed_marks(board, ("numbers", "cell_numbers", "arrows", "text"), seed=2)
     for light_on_dark, ink in ((False, INK), (True, PAPER)):
@@ -314,9 +315,7 @@ def test_marks_render_in_the_ink_and_are_no_truth() -> None:
         changed = scene.image != plain.image
         assert changed.sum() > 500
         # Every stroke's middle is ink (those at least 2 px wide: thinner ones are grey).
-        on_table = synth._board_to_table(
-            np.array([m.position_mm for m in marks]), (30.0, -20.0), 25.0
-        )
+        on_table = _board_to_table(np.array([m.position_mm for m in marks]), (30.0, -20.0), 25.0)
         px = np.rint(camera.project(on_table, pose)).astype(int)
         wide = np.array([m.size_mm * 900.0 / 330.0 >= 2.0 for m in marks])
         assert wide.sum() > 20

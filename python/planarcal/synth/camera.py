@@ -1,0 +1,319 @@
+"""The camera of a synthetic scene: where the table plane is (:class:`PlanePose`), a pinhole
+camera with OpenCV's radial lens (:class:`CameraModel`), and the two together (:class:`View`).
+
+Conventions (those of all of :mod:`planarcal.synth`)
+-----------------------------------------------------
+* **Table coordinates** (mm): X and Y on the plane, Z = X x Y pointing *away* from the
+  camera (into the table), so a point h mm above the table is (X, Y, -h). A board placed
+  with ``board_origin_mm=(0, 0)`` and ``board_angle_deg=0`` has board coordinates equal to
+  table coordinates.
+* **Pixels**: OpenCV's convention. The centre of pixel (row i, column j) is at (x, y) =
+  (j, i); the pixel covers [j - 0.5, j + 0.5] x [i - 0.5, i + 0.5]. The default principal
+  point is the image centre, ((width - 1) / 2, (height - 1) / 2).
+* **Camera**: OpenCV's frame (x right, y down, z along the optical axis) and its radial
+  distortion model on normalised coordinates, x_d = x_u (1 + k1 r^2 + k2 r^4) with
+  r^2 = x_u^2 + y_u^2, then pixel = focal_px * x_d + principal. ``cv2.projectPoints`` with
+  ``rvec, tvec = pose.rvec_tvec()``, ``camera.matrix()`` and ``camera.dist_coeffs()``
+  gives the same pixels as :meth:`CameraModel.project` (which takes points above the table
+  too: ``height_mm``).
+
+Going the other way, from a pixel to the table point it sees, is exact too: the position is
+undistorted by Newton's method on the radial polynomial (to machine precision), and the ray
+through it is intersected with the plane. The renderer traces every pixel so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from planarcal import arguments
+from planarcal.errors import ImageError
+
+F64 = NDArray[np.float64]
+
+
+def _heights(value: ArrayLike, shape: tuple[int, ...]) -> F64 | None:
+    """Heights above the table (mm) for points of leading shape ``shape``, flat (N,); None
+    when they are all zero (the plane itself, computed as before heights existed)."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("height_mm must be a number or an array of numbers") from None
+    try:
+        flat = np.broadcast_to(a, shape).reshape(-1)
+    except ValueError:
+        raise ValueError(
+            f"height_mm must be a scalar or one height per point (shape {shape}), got shape "
+            f"{a.shape}"
+        ) from None
+    bad = np.flatnonzero(~np.isfinite(flat))
+    if bad.size:
+        raise ValueError(f"height_mm: height {int(bad[0])} is not finite: {float(flat[bad[0]])!r}")
+    return None if not flat.any() else np.ascontiguousarray(flat)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanePose:
+    """Where the table plane is, seen from the camera.
+
+    The camera looks at the table point ``look_at_mm`` (X, Y in mm), which lies on its
+    optical axis ``distance_mm`` in front of it (so it appears at the principal point).
+    With no tilt and no roll the camera looks straight down the plane's normal, the table's
+    X axis runs to the right of the image and Y down it. ``tilt_deg`` then rotates the plane
+    about the in-plane axis through ``look_at_mm`` at ``tilt_axis_deg`` from X (towards Y),
+    by the right-hand rule in table coordinates (Z into the table); ``roll_deg`` finally
+    rotates the scene about the optical axis (positive turns the image clockwise on screen).
+    |tilt| must be below 90 degrees (the camera must face the plane).
+    """
+
+    distance_mm: float
+    tilt_deg: float = 0.0
+    tilt_axis_deg: float = 0.0
+    roll_deg: float = 0.0
+    look_at_mm: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        d = arguments.real("distance_mm", self.distance_mm)
+        if d <= 0:
+            raise ValueError(
+                f"distance_mm must be positive, got {self.distance_mm!r}: a plane at a "
+                "distance <= 0 is at or behind the camera"
+            )
+        tilt = arguments.real("tilt_deg", self.tilt_deg)
+        if not abs(tilt) < 90.0:
+            raise ValueError(
+                f"tilt_deg must be between -90 and 90 (exclusive), got {self.tilt_deg!r}: "
+                "at 90 degrees or more the camera sees the plane edge-on or from behind"
+            )
+        arguments.real("tilt_axis_deg", self.tilt_axis_deg)
+        arguments.real("roll_deg", self.roll_deg)
+        object.__setattr__(self, "look_at_mm", arguments.pair("look_at_mm", self.look_at_mm))
+
+    def rotation(self) -> F64:
+        """R (3 x 3): table coordinates to camera coordinates, X_cam = R X_table + t."""
+        a = math.radians(self.tilt_axis_deg)
+        axis = np.array([math.cos(a), math.sin(a), 0.0])
+        tilt, _ = cv2.Rodrigues(axis * math.radians(self.tilt_deg))
+        r = math.radians(self.roll_deg)
+        c, s = math.cos(r), math.sin(r)
+        roll = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return np.asarray(roll @ tilt, dtype=np.float64)
+
+    def translation(self) -> F64:
+        """t (3,): the table origin in camera coordinates (mm)."""
+        look = np.array([*self.look_at_mm, 0.0])
+        t = np.array([0.0, 0.0, float(self.distance_mm)]) - self.rotation() @ look
+        return np.asarray(t, dtype=np.float64)
+
+    def rvec_tvec(self) -> tuple[F64, F64]:
+        """OpenCV's (rvec, tvec), each (3, 1) float64, for cv2.projectPoints and the like."""
+        rvec, _ = cv2.Rodrigues(self.rotation())
+        tvec = np.asarray(self.translation(), dtype=np.float64).reshape(3, 1)
+        return np.asarray(rvec, dtype=np.float64).reshape(3, 1), tvec
+
+    def camera_centre_mm(self) -> F64:
+        """The camera's optical centre in table coordinates, (3,) (its Z is negative)."""
+        return np.asarray(-self.rotation().T @ self.translation(), dtype=np.float64)
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraModel:
+    """A pinhole camera with square pixels and OpenCV's two-term radial distortion.
+
+    ``focal_px`` is the focal length in pixels; ``principal`` the principal point in pixels
+    (None: the image centre, ((width - 1) / 2, (height - 1) / 2)); ``k1``, ``k2`` the radial
+    coefficients on normalised coordinates (k1 < 0: barrel, as in most webcams). The
+    distortion must be invertible over the image (no fold-over between the centre and the
+    corners). The default focal length, 1070 px, is a Logitech C525's at 1280 x 720 (about
+    69 degrees diagonal field of view).
+    """
+
+    width: int = 1280
+    height: int = 720
+    focal_px: float = 1070.0
+    principal: tuple[float, float] | None = None
+    k1: float = 0.0
+    k2: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer):
+                raise ImageError(f"{name} must be a whole number of pixels, got {value!r}")
+            if not 2 <= value <= 65536:
+                raise ImageError(f"{name} must be 2 to 65536 pixels, got {value}")
+            object.__setattr__(self, name, int(value))
+        arguments.positive("focal_px", self.focal_px)
+        if self.principal is not None:
+            object.__setattr__(self, "principal", arguments.pair("principal", self.principal))
+        k1, k2 = arguments.real("k1", self.k1), arguments.real("k2", self.k2)
+        if k1 or k2:
+            r_corner = self._corner_radius()
+            r = np.linspace(0.0, 5.0 * r_corner + 1.0, 200_001)
+            rr = r * r
+            slope = 1.0 + rr * (3.0 * k1 + 5.0 * k2 * rr)
+            distorted = r * (1.0 + rr * (k1 + k2 * rr))
+            reach = np.flatnonzero(distorted >= r_corner)
+            folds = np.flatnonzero(slope <= 0.0)
+            if reach.size == 0 or (folds.size and folds[0] <= reach[0]):
+                raise ValueError(
+                    f"distortion k1={k1}, k2={k2} folds over inside the image: the radial "
+                    "mapping stops increasing before the image corners, so pixels near them "
+                    "would see two places at once; use milder coefficients"
+                )
+
+    @property
+    def cx(self) -> float:
+        return (self.width - 1) / 2.0 if self.principal is None else self.principal[0]
+
+    @property
+    def cy(self) -> float:
+        return (self.height - 1) / 2.0 if self.principal is None else self.principal[1]
+
+    def _corner_radius(self) -> float:
+        """Largest normalised (distorted) radius of the image's outer pixel corners."""
+        xs = (np.array([-0.5, self.width - 0.5]) - self.cx) / self.focal_px
+        ys = (np.array([-0.5, self.height - 0.5]) - self.cy) / self.focal_px
+        return float(np.sqrt(np.max(xs**2) + np.max(ys**2)))
+
+    def matrix(self) -> F64:
+        """The intrinsic matrix K (3 x 3)."""
+        f = float(self.focal_px)
+        return np.array([[f, 0.0, self.cx], [0.0, f, self.cy], [0.0, 0.0, 1.0]])
+
+    def dist_coeffs(self) -> F64:
+        """OpenCV's distortion vector (k1, k2, p1, p2, k3) = (k1, k2, 0, 0, 0)."""
+        return np.array([self.k1, self.k2, 0.0, 0.0, 0.0], dtype=np.float64)
+
+    @property
+    def distorted(self) -> bool:
+        return bool(self.k1 or self.k2)
+
+    def distort(self, normalized: ArrayLike) -> F64:
+        """Undistorted normalised coordinates (..., 2) to distorted ones."""
+        p, shape = arguments.points("normalized", normalized)
+        r2 = np.sum(p * p, axis=1, keepdims=True)
+        out = p * (1.0 + r2 * (self.k1 + self.k2 * r2))
+        return np.asarray(out.reshape(*shape, 2), dtype=np.float64)
+
+    def _undistort_scale(self, rd2: F64) -> F64:
+        """s with r_u = s r_d for squared distorted radii rd2 (exact, Newton's method)."""
+        k1, k2 = float(self.k1), float(self.k2)
+        if not (k1 or k2):
+            return np.ones_like(rd2)
+        rd = np.sqrt(rd2)
+        r = rd.copy()
+        for _ in range(40):
+            rr = r * r
+            f = r * (1.0 + rr * (k1 + k2 * rr)) - rd
+            f /= 1.0 + rr * (3.0 * k1 + 5.0 * k2 * rr)
+            r -= f
+            if float(np.max(np.abs(f), initial=0.0)) <= 1e-15 * (1.0 + float(rd.max())):
+                break
+        else:  # pragma: no cover - the constructor rules out fold-over
+            raise ValueError("undistortion did not converge: distortion too strong here")
+        return np.asarray(np.divide(r, rd, out=np.ones_like(rd), where=rd > 0.0), np.float64)
+
+    def undistort(self, normalized: ArrayLike) -> F64:
+        """Distorted normalised coordinates (..., 2) to undistorted ones (exact inverse of
+        :meth:`distort` within the image's radius)."""
+        p, shape = arguments.points("normalized", normalized)
+        s = self._undistort_scale(np.sum(p * p, axis=1))
+        return (p * s[:, None]).reshape(*shape, 2)
+
+    def homography(self, pose: PlanePose) -> F64:
+        """The table (mm) -> image (px) homography K [r1 r2 t], scaled so H[2, 2] = 1 (-1 if
+        the table origin is behind the camera: points in front keep w > 0).
+
+        It is the exact projection when k1 = k2 = 0; with distortion it is the undistorted
+        part (the projection onto the ideal pinhole image, before the lens bends it).
+        """
+        r = pose.rotation()
+        m = np.column_stack([r[:, 0], r[:, 1], pose.translation()])
+        h = self.matrix() @ m
+        scale = h[2, 2] if abs(h[2, 2]) > 1e-12 * np.abs(h).max() else np.linalg.norm(h)
+        return np.asarray(h / abs(scale), dtype=np.float64)
+
+    def project(self, world_xy: ArrayLike, pose: PlanePose, height_mm: ArrayLike = 0.0) -> F64:
+        """Table points (..., 2) in mm to pixels (..., 2), exactly, lens distortion included.
+
+        ``height_mm``: how far above the table the points are (mm; a scalar or one height per
+        point, shaped like the points' leading dimensions; negative: below it). A point
+        (X, Y) at height h is the 3-D table point (X, Y, -h) (table Z points away from the
+        camera), as for ``cv2.projectPoints``. Raises ValueError for a point at or behind the
+        camera's plane (it has no image).
+        """
+        p, shape = arguments.points("world_xy", world_xy)
+        heights = _heights(height_mm, shape)
+        r, t = pose.rotation(), pose.translation()
+        cam = p @ r[:, :2].T + t
+        if heights is not None:
+            cam = cam - heights[:, None] * r[:, 2]
+        behind = np.flatnonzero(cam[:, 2] <= 1e-9 * float(pose.distance_mm))
+        if behind.size:
+            i = int(behind[0])
+            where = "" if heights is None else f" at height {float(heights[i])!r} mm"
+            raise ValueError(
+                f"world point {i} {p[i].tolist()}{where} is behind the camera: it has no image"
+            )
+        xy = cam[:, :2] / cam[:, 2:]
+        if self.distorted:
+            r2 = np.sum(xy * xy, axis=1, keepdims=True)
+            xy = xy * (1.0 + r2 * (self.k1 + self.k2 * r2))
+        px = xy * float(self.focal_px) + np.array([self.cx, self.cy])
+        return np.asarray(px.reshape(*shape, 2), dtype=np.float64)
+
+    def image_to_plane(self, pixels: ArrayLike, pose: PlanePose) -> F64:
+        """Pixels (..., 2) to the table points (mm) they see: undistort, back-project the
+        ray, intersect it with the plane (exact). ValueError if a ray misses the plane."""
+        p, shape = arguments.points("pixels", pixels)
+        x, y, ok = self._rays_to_plane(
+            (p[:, 0] - self.cx) / self.focal_px, (p[:, 1] - self.cy) / self.focal_px, pose
+        )
+        if not ok.all():
+            i = int(np.flatnonzero(~ok)[0])
+            raise ValueError(f"pixel {i} {p[i].tolist()} sees above the plane's horizon")
+        return np.column_stack([x, y]).reshape(*shape, 2)
+
+    def _rays_to_plane(
+        self, xd: F64, yd: F64, pose: PlanePose
+    ) -> tuple[F64, F64, NDArray[np.bool_]]:
+        """Distorted normalised coordinates (any matching shapes) to table X, Y, and whether
+        the ray hits the plane in front of the camera."""
+        s = self._undistort_scale(xd * xd + yd * yd)
+        xu, yu = xd * s, yd * s
+        r = pose.rotation()
+        minv = np.linalg.inv(np.column_stack([r[:, 0], r[:, 1], pose.translation()]))
+        w = minv[2, 0] * xu + minv[2, 1] * yu + minv[2, 2]
+        ok = w > 1e-12
+        w = np.where(ok, w, 1.0)
+        x = (minv[0, 0] * xu + minv[0, 1] * yu + minv[0, 2]) / w
+        y = (minv[1, 0] * xu + minv[1, 1] * yu + minv[1, 2]) / w
+        return x, y, ok
+
+
+@dataclasses.dataclass(frozen=True)
+class View:
+    """A camera at a pose: the mapping between the table (mm) and the image (px)."""
+
+    camera: CameraModel
+    pose: PlanePose
+
+    def project(self, world_xy: ArrayLike, height_mm: ArrayLike = 0.0) -> F64:
+        """Table points (..., 2) in mm, ``height_mm`` above the table, to pixels, exactly
+        (see CameraModel.project)."""
+        return self.camera.project(world_xy, self.pose, height_mm)
+
+    def homography(self) -> F64:
+        """The table -> image homography (see CameraModel.homography): exact without
+        distortion, else the undistorted part."""
+        return self.camera.homography(self.pose)
+
+    def image_to_plane(self, pixels: ArrayLike) -> F64:
+        """Pixels to the table points they see (see CameraModel.image_to_plane)."""
+        return self.camera.image_to_plane(pixels, self.pose)
