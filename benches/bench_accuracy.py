@@ -36,7 +36,7 @@ from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
-from planarcal.camera.intrinsics import calibrate_camera
+from planarcal.camera import calibrate_camera
 from planarcal.live.objects import locate_objects
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"

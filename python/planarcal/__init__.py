@@ -27,7 +27,7 @@ from planarcal._core import __version__
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration, CalibrationSummary, LensCandidate, LensModel
 from planarcal.calib.detect import BoardDetection, detect_board
-from planarcal.camera.intrinsics import CameraIntrinsics, calibrate_camera
+from planarcal.camera import CameraIntrinsics, calibrate_camera
 from planarcal.errors import (
     ArgumentError,
     BoardError,

@@ -19,7 +19,7 @@ from planarcal import __version__
 from planarcal.calib.board import LAYOUTS, CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
-from planarcal.camera.intrinsics import CameraIntrinsics, calibrate_camera
+from planarcal.camera import CameraIntrinsics, calibrate_camera
 from planarcal.errors import ArgumentError, BoardError, BoardNotFoundError
 from planarcal.files import atomic_write
 from planarcal.homography import SOLVERS

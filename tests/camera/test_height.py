@@ -10,7 +10,7 @@ import pytest
 from planarcal import synth
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
-from planarcal.camera.intrinsics import CameraIntrinsics, calibrate_camera
+from planarcal.camera import CameraIntrinsics, calibrate_camera
 from planarcal.errors import IntrinsicsError
 from planarcal.live.objects import detect_objects, locate_objects
 from scene_effects import PAPER_EFFECTS

@@ -22,7 +22,7 @@ import pytest
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.detect import BoardDetection, detect_board
-from planarcal.camera.intrinsics import (
+from planarcal.camera import (
     CameraIntrinsics,
     PlanePoseEstimate,
     calibrate_camera,

@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 from planarcal import _core
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.detect import detect_board
-from planarcal.camera.intrinsics import CameraIntrinsics, plane_pose, points_at_height
+from planarcal.camera import CameraIntrinsics, plane_pose, points_at_height
 from planarcal.errors import (
     ArgumentError,
     BoardError,
