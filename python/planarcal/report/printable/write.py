@@ -1,0 +1,158 @@
+"""``write_board``: the board laid out on a page and written as SVG or PDF (by the file's
+suffix), atomically; ``PrintLayout``: where it put everything."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from planarcal.calib.board import CircleGridBoard
+from planarcal.errors import BoardError
+from planarcal.files import atomic_write
+from planarcal.report.printable.layout import CHECK_BAR_MM, fit, refusal
+from planarcal.report.printable.pages import Orientation, num, parse_page
+from planarcal.report.printable.pdf import PT_PER_MM, pdf_bytes
+from planarcal.report.printable.shapes import Box
+from planarcal.report.printable.svg import svg_bytes
+
+
+@dataclasses.dataclass(frozen=True)
+class PrintLayout:
+    """Where ``write_board`` put everything, in page mm (from the top-left corner, y down).
+
+    ``field_offset_mm`` is the page position of world (0, 0), the centre of dot 0: a world
+    point (X, Y) of the board is printed at (X, Y) + field_offset_mm (see ``to_page``). In a
+    PDF, whose y runs up from the bottom in points, a page point (x, y) is at
+    (x * PT_PER_MM, (page height - y) * PT_PER_MM).
+    """
+
+    path: Path
+    """The file written."""
+    format: Literal["svg", "pdf"]
+    board: CircleGridBoard
+    page: str
+    """The page's name ("A4", "letter") or custom size ("300x400")."""
+    page_size_mm: tuple[float, float]
+    """(width, height) of the page as laid out, i.e. after ``orientation``."""
+    orientation: Literal["portrait", "landscape"]
+    margin_mm: float
+    field_offset_mm: tuple[float, float]
+    """Page position of world (0, 0), the centre of dot 0."""
+    field_box_mm: Box
+    """The dot field, outer edge to outer edge (``board.extent``), centred on the page."""
+    bar_start_mm: tuple[float, float]
+    """Left end of the check bar: the centre of its 0 tick on the bar's centre line."""
+    bar_end_mm: tuple[float, float]
+    """Right end of the check bar (its 100 mm tick), CHECK_BAR_MM to the right."""
+    text_box_mm: Box
+    """The text block with the board's parameters and the printing instructions."""
+    content_box_mm: Box
+    """Everything drawn (strokes and the text's budgeted extent included)."""
+
+    @property
+    def page_size_pt(self) -> tuple[float, float]:
+        """(width, height) of the page in PDF points: the PDF's MediaBox."""
+        return (self.page_size_mm[0] * PT_PER_MM, self.page_size_mm[1] * PT_PER_MM)
+
+    @property
+    def usable_box_mm(self) -> Box:
+        """The page inside its margins: ``content_box_mm`` lies within it."""
+        w, h = self.page_size_mm
+        m = self.margin_mm
+        return (m, m, w - m, h - m)
+
+    @property
+    def bar_length_mm(self) -> float:
+        return self.bar_end_mm[0] - self.bar_start_mm[0]
+
+    def to_page(self, world_points: ArrayLike) -> NDArray[np.float64]:
+        """Page positions in mm of world points (N, 2) in mm."""
+        points = np.asarray(world_points, dtype=np.float64).reshape(-1, 2)
+        return points + np.asarray(self.field_offset_mm, dtype=np.float64)
+
+
+def write_board(
+    board: CircleGridBoard,
+    path: str | os.PathLike[str],
+    *,
+    page: str | Sequence[float] = "A4",
+    orientation: Orientation = "auto",
+    margin_mm: float = 10.0,
+) -> PrintLayout:
+    """Write ``board`` to ``path`` as a printable page at exact scale; returns the layout.
+
+    The format follows the suffix: ``.svg`` or ``.pdf`` (any case); anything else is a
+    ValueError. ``page`` is a name from ``PAGE_SIZES`` (any case), a custom ``"WxH"`` in mm,
+    or a (width, height) pair in mm; custom sizes are turned like standard ones.
+    ``orientation`` is ``"portrait"`` (the short side across), ``"landscape"`` or ``"auto"``:
+    whichever fits, and if both do, the one that leaves the dot field more room (the larger
+    of the two orientations' smaller slack around it), portrait on a tie. ``margin_mm`` is
+    kept clear on every side.
+
+    Raises BoardError when the board, with its axis marks, check bar and text, does not fit
+    inside the margins (in the orientation asked for, or in either for ``"auto"``): the
+    message gives the dot field's extent, the page's usable size, and the smallest standard
+    page that fits, and when the board leaves its dots' diameter unknown (``diameter=None``):
+    a printed dot needs a size. An unwritable path raises OSError naming it; the file is
+    written atomically (see the module's docstring).
+    """
+    target = Path(os.fspath(path))
+    suffix = target.suffix.lower()
+    if suffix not in (".svg", ".pdf"):
+        raise ValueError(
+            f"cannot tell the format of {str(target)!r} from its suffix "
+            f"{target.suffix or '(none)'!r}: use .svg or .pdf"
+        )
+    fmt: Literal["svg", "pdf"] = "svg" if suffix == ".svg" else "pdf"
+    if orientation not in ("auto", "portrait", "landscape"):
+        raise ValueError(
+            f"orientation must be 'auto', 'portrait' or 'landscape', got {orientation!r}"
+        )
+    if isinstance(margin_mm, bool) or not isinstance(margin_mm, int | float | np.number):
+        raise ValueError(f"margin_mm must be a length in mm, got {margin_mm!r}")
+    margin = float(margin_mm)
+    if not (math.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin_mm must be a finite length >= 0 in mm, got {margin_mm!r}")
+    if isinstance(page, str):
+        label, size = parse_page(page)
+    else:
+        try:
+            pw, ph = (float(v) for v in page)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"a page is a name like 'A4', a size like '300x400' or (width, height) in mm, "
+                f"got {page!r}"
+            ) from None
+        if not (pw > 0 and ph > 0 and math.isfinite(pw) and math.isfinite(ph)):
+            raise ValueError(f"a page must have a positive width and height, got {page!r}")
+        label, size = f"{num(pw)}x{num(ph)}", (pw, ph)
+
+    board.dots_mm()  # BoardError when the dots' size is unknown: it cannot be printed
+    drawing = fit(board, label, size, orientation, margin)
+    if drawing is None:
+        raise BoardError(refusal(board, label, size, orientation, margin))
+
+    data = svg_bytes(drawing, board) if fmt == "svg" else pdf_bytes(drawing, board)
+    atomic_write(target, data)
+    return PrintLayout(
+        path=target,
+        format=fmt,
+        board=board,
+        page=drawing.page,
+        page_size_mm=drawing.size,
+        orientation=drawing.orientation,
+        margin_mm=margin,
+        field_offset_mm=drawing.offset,
+        field_box_mm=drawing.field_box,
+        bar_start_mm=drawing.bar_start,
+        bar_end_mm=(drawing.bar_start[0] + CHECK_BAR_MM, drawing.bar_start[1]),
+        text_box_mm=drawing.text_box,
+        content_box_mm=drawing.content_box,
+    )
