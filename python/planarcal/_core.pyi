@@ -1,13 +1,16 @@
 # Stubs of the compiled module planarcal._core (checked by python -m mypy.stubtest).
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planarcal.homography.robust import RobustMethod, StopReason
+
 __all__ = [
     "FittedPlane",
     "PlaneMapper",
+    "RobustResult",
     "Tracks",
     "__version__",
     "_after_fork_in_child",
@@ -110,32 +113,64 @@ def find_homography(
     src: ArrayLike, dst: ArrayLike
 ) -> tuple[NDArray[np.float64] | None, NDArray[np.uint8]]: ...
 
-_RobustTuple = tuple[
-    NDArray[np.float64] | None, NDArray[np.bool_], int, int, str, float, float, int
-]
+# Defined here, re-exported as planarcal.RobustResult (its __module__ says so).
+@final
+class RobustResult:
+    def __new__(
+        cls,
+        H: NDArray[np.float64] | None,
+        inliers: NDArray[np.bool_],
+        n_inliers: int,
+        iterations: int,
+        stop_reason: StopReason,
+        rms_inlier_error: float,
+        threshold: float,
+        local_optimizations: int,
+    ) -> RobustResult: ...
+    @property
+    def H(self) -> NDArray[np.float64] | None: ...
+    @property
+    def inliers(self) -> NDArray[np.bool_]: ...
+    @property
+    def n_inliers(self) -> int: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def stop_reason(self) -> StopReason: ...
+    @property
+    def rms_inlier_error(self) -> float: ...
+    @property
+    def threshold(self) -> float: ...
+    @property
+    def local_optimizations(self) -> int: ...
+    @property
+    def success(self) -> bool: ...
+    @property
+    def inlier_ratio(self) -> float: ...
+    def __reduce__(self) -> tuple[type[RobustResult], tuple[Any, ...]]: ...
 
 def estimate_homography_robust(
     src: ArrayLike,
     dst: ArrayLike,
-    threshold: float = 3.0,
-    confidence: float = 0.999,
-    max_iters: int = 10000,
-    seed: int = 0,
-    scores: ArrayLike | None = None,
-    method: str = "msac",
-) -> _RobustTuple: ...
+    threshold: float,
+    confidence: float,
+    max_iters: int,
+    seed: int,
+    scores: ArrayLike | None,
+    method: RobustMethod,
+) -> RobustResult: ...
 def estimate_homography_robust_batch(
-    problems: Any,
-    threshold: float = 3.0,
-    confidence: float = 0.999,
-    max_iters: int = 10000,
-    seed: int = 0,
-    method: str = "msac",
-) -> list[_RobustTuple]: ...
+    problems: Iterable[tuple[ArrayLike, ArrayLike]],
+    threshold: float,
+    confidence: float,
+    max_iters: int,
+    seed: int,
+    method: RobustMethod,
+) -> list[RobustResult]: ...
 def find_homography_robust(
     src: ArrayLike,
     dst: ArrayLike,
-    method: str,
+    method: RobustMethod,
     threshold: float,
     max_iters: int,
     confidence: float,

@@ -30,7 +30,7 @@ from planarcal.errors import (
     OpenCVCompatiblePointAtInfinityError,
     PointAtInfinityError,
 )
-from planarcal.homography.robust import check_robust_options
+from planarcal.homography.robust import RobustMethod
 
 # OpenCV's method constants (cv2.LMEDS, ...), with its integer values.
 LMEDS = 4
@@ -135,13 +135,16 @@ def _find_robust(
     src: ArrayLike,
     dst: ArrayLike,
     method: int,
-    threshold: object,
-    max_iters: object,
-    confidence: object,
+    threshold: float,
+    max_iters: int,
+    confidence: float,
 ) -> tuple[NDArray[np.float64] | None, NDArray[np.uint8]]:
-    kind = "lmeds" if method == LMEDS else "msac"
-    t, c, k, _, m = check_robust_options(threshold, confidence, max_iters, 0, kind)
-    return _core.find_homography_robust(src, dst, m, t, k, c, method == USAC_PROSAC)
+    kind: RobustMethod = "lmeds" if method == LMEDS else "msac"
+    # The binding checks the options (an ArgumentError naming planarcal's argument, e.g.
+    # max_iters); findHomography turns it into a cv2.error.
+    return _core.find_homography_robust(
+        src, dst, kind, threshold, max_iters, confidence, method == USAC_PROSAC
+    )
 
 
 def perspectiveTransform(

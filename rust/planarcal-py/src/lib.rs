@@ -28,6 +28,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<plane_model::FittedPlane>()?;
     m.add_class::<mapper::PlaneMapper>()?;
     m.add_class::<tracking::Tracks>()?;
+    m.add_class::<robust::RobustResult>()?;
     m.add_function(wrap_pyfunction!(tracking::frame_json, m)?)?;
     m.add_function(wrap_pyfunction!(contours::measure_contours, m)?)?;
     m.add_function(wrap_pyfunction!(contours::reading_order, m)?)?;

@@ -180,35 +180,47 @@ const INITIAL_DELTA: f64 = 0.001;
 /// Chance that a wrong model reaches the required support, over all hypotheses tested.
 const NON_RANDOMNESS: f64 = 0.01;
 
-fn check_options(o: &RobustOptions, n: usize) -> Result<()> {
-    let bad = |name, value, expected| {
-        Err(HomographyError::InvalidParameter {
-            name,
-            value,
-            expected,
-        })
-    };
-    if o.method == Method::Msac && !(o.threshold > 0.0 && o.threshold.is_finite()) {
-        return bad("threshold", o.threshold, "a positive, finite distance");
-    }
-    if !(o.confidence > 0.0 && o.confidence < 1.0) {
-        return bad("confidence", o.confidence, "strictly between 0 and 1");
-    }
-    if o.max_iters == 0 {
-        return bad("max_iters", 0.0, "at least 1");
-    }
-    if let Some(s) = &o.scores {
-        if s.len() != n {
-            return Err(HomographyError::ScoresLength {
-                points: n,
-                scores: s.len(),
-            });
+impl RobustOptions {
+    /// Checks every option against its range: the one place that does (the bindings only
+    /// convert the caller's objects to these types). The scores' length, which depends on the
+    /// problem, is checked by [`estimate_robust`].
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name, value, expected| {
+            Err(HomographyError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        if self.method == Method::Msac && !(self.threshold > 0.0 && self.threshold.is_finite()) {
+            return bad(
+                "threshold",
+                self.threshold,
+                "a positive, finite distance (destination units)",
+            );
         }
-        if let Some(v) = s.iter().find(|v| !v.is_finite()) {
+        if !(self.confidence > 0.0 && self.confidence < 1.0) {
+            return bad("confidence", self.confidence, "strictly between 0 and 1");
+        }
+        if self.max_iters == 0 {
+            return bad("max_iters", 0.0, "at least 1");
+        }
+        if let Some(v) = self.scores.iter().flatten().find(|v| !v.is_finite()) {
             return bad("scores", *v, "finite numbers");
         }
+        Ok(())
     }
-    Ok(())
+}
+
+fn check_options(o: &RobustOptions, n: usize) -> Result<()> {
+    o.validate()?;
+    match &o.scores {
+        Some(s) if s.len() != n => Err(HomographyError::ScoresLength {
+            points: n,
+            scores: s.len(),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// Fits H with dst ~ H src despite outliers.
@@ -750,5 +762,35 @@ fn finish(
         rms_inlier_error: (sum_sq / n_inliers as f64).sqrt(),
         threshold,
         lo_runs: search.lo_runs,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rejects(o: RobustOptions) -> &'static str {
+        match o.validate() {
+            Err(HomographyError::InvalidParameter { name, .. }) => name,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn options_are_checked_without_a_problem() {
+        let d = RobustOptions::default;
+        assert!(d().validate().is_ok());
+        // LMedS derives its own threshold: the caller's is not looked at.
+        let lmeds = RobustOptions {
+            method: Method::Lmeds,
+            threshold: -1.0,
+            ..d()
+        };
+        assert!(lmeds.validate().is_ok());
+        let scores = RobustOptions {
+            scores: Some(vec![1.0, f64::NAN]),
+            ..d()
+        };
+        assert_eq!(rejects(scores), "scores");
     }
 }
