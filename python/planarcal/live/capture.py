@@ -38,377 +38,40 @@ consumer: two threads reading it get alternate frames.
 
 from __future__ import annotations
 
-import glob
 import math
 import os
-import queue
-import re
-import stat
-import sys
 import threading
-import urllib.parse
 from collections.abc import Callable, Iterator
 from types import TracebackType
-from typing import Any, Generic, Literal, TypeVar, cast
+from typing import Any, TypeVar, cast
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from planarcal.errors import CameraError, ImageError
+from planarcal.errors import ArgumentError, CameraError, ImageError
+from planarcal.live.capture_sources import (
+    IMAGE_SUFFIXES,
+    Backend,
+    BackendSlot,
+    SourceKind,
+    open_device,
+    open_path,
+    open_stream,
+    redact,
+)
+from planarcal.live.capture_worker import Worker, WorkerTimeoutError
 
 __all__ = ["BACKEND_GRACE_S", "IMAGE_SUFFIXES", "Camera", "Frame"]
 
 Frame = NDArray[np.uint8]
 """A frame: H x W x 3 BGR, or H x W grey, uint8."""
 
-IMAGE_SUFFIXES = frozenset(
-    {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pnm", ".jp2"}
-)
-"""The suffixes (case-insensitive) of the files read from an image folder."""
-
 BACKEND_GRACE_S = 1.0
 """How much longer than ``timeout_s`` OpenCV's own timeouts are: the caller's guard fires
 first, and the backend then frees the stuck worker thread shortly after."""
 
-_Kind = Literal["device", "stream", "file", "folder"]
 _T = TypeVar("_T")
-
-
-# ----------------------------------------------------------------------------------------------
-# The worker thread: runs blocking calls so that the caller can stop waiting.
-
-
-class _WorkerTimeoutError(Exception):
-    """The worker did not finish a call within the caller's timeout."""
-
-
-class _Job(Generic[_T]):
-    """One call for the worker thread, and its outcome."""
-
-    __slots__ = ("done", "error", "fn", "result")
-
-    def __init__(self, fn: Callable[[], _T]) -> None:
-        self.fn = fn
-        self.done = threading.Event()
-        self.result: _T | None = None
-        self.error: BaseException | None = None
-
-
-class _Worker:
-    """A daemon thread that runs jobs in order. ``call`` waits for a job at most ``timeout``;
-    ``stop`` queues a last job and the order to exit, without waiting: a job that hangs keeps
-    the thread (never the caller) until it returns, and the last job runs after it."""
-
-    def __init__(self, name: str) -> None:
-        self._jobs: queue.SimpleQueue[_Job[Any] | None] = queue.SimpleQueue()
-        self.stopped = False
-        # The thread references the queue only, never the Camera, so an unclosed Camera can
-        # still be collected (its __del__ stops the worker).
-        self.thread = threading.Thread(target=_Worker._run, args=(self._jobs,), name=name)
-        self.thread.daemon = True
-        self.thread.start()
-
-    @staticmethod
-    def _run(jobs: queue.SimpleQueue[_Job[Any] | None]) -> None:
-        while True:
-            job = jobs.get()
-            if job is None:
-                return
-            try:
-                job.result = job.fn()
-            except BaseException as e:  # handed to the caller, who re-raises it
-                job.error = e
-            finally:
-                job.done.set()
-            # Hold nothing while waiting for the next job: the last job's function may be a
-            # method of the Camera, which must stay collectable.
-            del job
-
-    def call(self, fn: Callable[[], _T], timeout: float) -> _T:
-        """Run ``fn`` on the worker thread; its result, or its exception re-raised here, or
-        ``_WorkerTimeoutError`` if it has not finished after ``timeout`` seconds."""
-        job = _Job(fn)
-        self._jobs.put(job)
-        if not job.done.wait(timeout):
-            raise _WorkerTimeoutError
-        if job.error is not None:
-            error, job.error = job.error, None  # no reference cycle through the traceback
-            raise error
-        return cast(_T, job.result)
-
-    def stop(self, last: Callable[[], None] | None = None) -> None:
-        """Queue ``last`` (run when every queued job is done) and the order to exit."""
-        if self.stopped:
-            return
-        self.stopped = True
-        if last is not None:
-            self._jobs.put(_Job(last))
-        self._jobs.put(None)
-
-
-# ----------------------------------------------------------------------------------------------
-# Backends: run on the worker thread only.
-
-
-class _Backend:
-    """What a Camera reads from: ``read`` returns a raw frame, or None at the end."""
-
-    kind: _Kind
-    label: str
-    fps: float | None = None
-
-    def read(self) -> NDArray[Any] | None:
-        raise NotImplementedError
-
-    def where(self) -> str:
-        """Which frame the last ``read`` returned, for messages."""
-        return ""
-
-    def release(self) -> None:
-        """Free the device, connection or file. Idempotent."""
-
-
-class _VideoBackend(_Backend):
-    """A cv2.VideoCapture: camera, stream or video file."""
-
-    def __init__(self, kind: _Kind, label: str, cap: Any) -> None:
-        self.kind = kind
-        self.label = label
-        self.cap: Any = cap
-        fps = float(cap.get(cv2.CAP_PROP_FPS))
-        self.fps = fps if math.isfinite(fps) and fps > 0 else None
-
-    def read(self) -> NDArray[Any] | None:
-        ok, frame = self.cap.read()
-        if not ok or frame is None or frame.size == 0:
-            return None
-        return cast(NDArray[Any], frame)
-
-    def release(self) -> None:
-        cap, self.cap = self.cap, None
-        if cap is not None:
-            cap.release()
-
-
-class _FolderBackend(_Backend):
-    """The images of a folder, in the given order."""
-
-    def __init__(self, label: str, files: list[str], color: bool) -> None:
-        self.kind = "folder"
-        self.label = label
-        self.files = files
-        self.flag = cv2.IMREAD_COLOR if color else cv2.IMREAD_GRAYSCALE
-        self.next = 0
-
-    def read(self) -> NDArray[Any] | None:
-        if self.next >= len(self.files):
-            return None
-        path = self.files[self.next]
-        self.next += 1
-        position = f"image {self.next} of {len(self.files)} in {self.label}"
-        try:
-            data = np.fromfile(path, dtype=np.uint8)
-        except OSError as e:
-            raise CameraError(f"cannot read {path!r} ({position}): {e}") from e
-        image: NDArray[Any] | None = None
-        if data.size:
-            try:
-                image = cv2.imdecode(data, self.flag)
-            except cv2.error:
-                image = None
-        if image is None or image.size == 0:
-            raise CameraError(
-                f"cannot decode {path!r} ({position}): it is corrupt, truncated or not an "
-                "image. Replace or remove it; the next read() goes on with the next image"
-            )
-        return image
-
-    def where(self) -> str:
-        return f" ({self.files[self.next - 1]!r})" if self.next else ""
-
-
-class _Slot:
-    """Holds the backend so that a job queued after a stuck one can still release it."""
-
-    backend: _Backend | None = None
-
-    def release(self) -> None:
-        backend, self.backend = self.backend, None
-        if backend is not None:
-            backend.release()
-
-
-def _natural_key(name: str) -> tuple[tuple[int | str, ...], str]:
-    """Sort key: runs of digits compare as numbers (img2 < img10), the rest case-blind."""
-    parts = re.split(r"(\d+)", name.casefold())
-    return tuple(int(p) if i % 2 else p for i, p in enumerate(parts)), name
-
-
-def _redact(url: str) -> str:
-    """The URL with its password, if any, replaced by ***: fit for messages and logs."""
-    try:
-        parts = urllib.parse.urlsplit(url)
-        if parts.password is None:
-            return url
-        user = parts.username or ""
-        host = parts.netloc.rpartition("@")[2]
-        return urllib.parse.urlunsplit(parts._replace(netloc=f"{user}:***@{host}"))
-    except ValueError:
-        return url
-
-
-def _ffmpeg_params(timeout_ms: int) -> list[int]:
-    return [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, timeout_ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, timeout_ms]
-
-
-def _has_ffmpeg() -> bool:
-    try:
-        return bool(cv2.videoio_registry.hasBackend(cv2.CAP_FFMPEG))
-    except (AttributeError, cv2.error):
-        return False
-
-
-def _video_capture(target: int | str, api: int, params: list[int] | None) -> Any:
-    """cv2.VideoCapture(...), or None where OpenCV raises instead of failing quietly."""
-    try:
-        if params is None:
-            return cv2.VideoCapture(target, api)
-        return cv2.VideoCapture(target, api, params)
-    except cv2.error:
-        return None
-
-
-def _opened(cap: Any) -> bool:
-    return cap is not None and bool(cap.isOpened())
-
-
-def _video_devices() -> str:
-    """The /dev/video* present, for the message of a device that cannot be opened."""
-    if not sys.platform.startswith("linux"):
-        return ""
-    found = sorted(glob.glob("/dev/video*"), key=_natural_key)
-    return f"; present: {', '.join(found)}" if found else "; no /dev/video* is present"
-
-
-def _open_device(
-    target: int | str, label: str, timeout_ms: int, width: int | None, height: int | None
-) -> _Backend:
-    cap = _video_capture(target, cv2.CAP_ANY, None)
-    if not _opened(cap):
-        if cap is not None:
-            cap.release()
-        node = f"/dev/video{target}" if isinstance(target, int) else target
-        raise CameraError(
-            f"cannot open {label}: no camera answered. Check that the camera is plugged in "
-            f"and powered, that the index or path is right ({node}{_video_devices()}), that no "
-            "other program is using it, and that this user may open it (on Linux: the "
-            "'video' group)"
-        )
-    # Backends that do not know these properties ignore them (set() returns False).
-    cap.set(cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, timeout_ms)
-    cap.set(cv2.CAP_PROP_READ_TIMEOUT_MSEC, timeout_ms)
-    # V4L2 changes the mode only once both are set: a size given alone goes with the other
-    # as it is now. What was granted is checked on the first frame.
-    if width is not None or height is not None:
-        if width is None:
-            width = round(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
-        if height is None:
-            height = round(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-        cap.set(cv2.CAP_PROP_FRAME_WIDTH, width)
-        cap.set(cv2.CAP_PROP_FRAME_HEIGHT, height)
-    return _VideoBackend("device", label, cap)
-
-
-def _open_stream(url: str, label: str, timeout_ms: int) -> _Backend:
-    # FFmpeg honours the timeouts; without it, CAP_ANY (with OpenCV's default timeouts: the
-    # worker thread still bounds the caller's wait).
-    if _has_ffmpeg():
-        cap = _video_capture(url, cv2.CAP_FFMPEG, _ffmpeg_params(timeout_ms))
-    else:
-        cap = _video_capture(url, cv2.CAP_ANY, None)
-    if not _opened(cap):
-        if cap is not None:
-            cap.release()
-        raise CameraError(
-            f"cannot open {label}: OpenCV got no video from it (connection refused, unknown "
-            "host, wrong path or credentials, or not a video stream). Check the URL (scheme, "
-            "host, port, path), that the camera or server is running and reachable from this "
-            "machine (network, firewall), and the user name and password"
-        )
-    return _VideoBackend("stream", label, cap)
-
-
-def _open_file(path: str, label: str, timeout_ms: int) -> _Backend:
-    if not os.access(path, os.R_OK):
-        raise CameraError(f"cannot open {label}: permission denied. Check the file's permissions")
-    cap = None
-    if _has_ffmpeg():
-        cap = _video_capture(path, cv2.CAP_FFMPEG, _ffmpeg_params(timeout_ms))
-    if not _opened(cap):
-        if cap is not None:
-            cap.release()
-        # The other file backends (OpenCV's own MJPEG reader, image sequences).
-        cap = _video_capture(path, cv2.CAP_ANY, None)
-    if not _opened(cap):
-        if cap is not None:
-            cap.release()
-        raise CameraError(
-            f"cannot open {label}: OpenCV cannot read it as video. Check that it is a video "
-            "file, that it is complete (not truncated or still being written), and that its "
-            f"codec is one this OpenCV build decodes (ffprobe {path!r} tells the codec); for "
-            "a folder of images, pass the folder"
-        )
-    return _VideoBackend("file", label, cap)
-
-
-def _open_folder(path: str, label: str, color: bool) -> _Backend:
-    try:
-        names = os.listdir(path)
-    except OSError as e:
-        raise CameraError(f"cannot list {label}: {e}. Check the folder's permissions") from e
-    images: list[str] = []
-    others = 0
-    for name in names:
-        full = os.path.join(path, name)
-        if (
-            not name.startswith(".")
-            and os.path.splitext(name)[1].lower() in IMAGE_SUFFIXES
-            and os.path.isfile(full)
-        ):
-            images.append(name)
-        else:
-            others += 1
-    if not images:
-        raise CameraError(
-            f"{label} holds no images ({others} other entries ignored). Check the path, and "
-            f"that the images have one of the suffixes {', '.join(sorted(IMAGE_SUFFIXES))}"
-        )
-    images.sort(key=_natural_key)
-    return _FolderBackend(label, [os.path.join(path, name) for name in images], color)
-
-
-def _open_path(
-    path: str, timeout_ms: int, width: int | None, height: int | None, color: bool
-) -> _Backend:
-    """Open a path by what it is: folder, character device, or (anything else) video file."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        hint = ""
-        if path.strip().isdigit():
-            hint = f"; to open camera device {path.strip()}, pass the int {int(path)}"
-        raise CameraError(
-            f"{path!r} does not exist: no such file or folder. Check the path (relative paths "
-            f"start from {os.getcwd()!r}){hint}"
-        ) from None
-    except OSError as e:
-        raise CameraError(f"cannot open {path!r}: {e}. Check the path and its permissions") from e
-    if stat.S_ISDIR(mode):
-        return _open_folder(path, f"image folder {path!r}", color)
-    if stat.S_ISCHR(mode):
-        return _open_device(path, f"camera device {path!r}", timeout_ms, width, height)
-    return _open_file(path, f"video file {path!r}", timeout_ms)
 
 
 def _as_frame(frame: NDArray[Any], color: bool, where: str) -> Frame:
@@ -440,8 +103,51 @@ def _check_positive_int(value: object, name: str, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
         raise TypeError(f"{name} must be an int, got {value!r}")
     if value < minimum:
-        raise ValueError(f"{name} must be at least {minimum}, got {value}")
+        raise ArgumentError(f"{name} must be at least {minimum}, got {value}")
     return int(value)
+
+
+def _check_options(
+    width: object, height: object, timeout_s: object
+) -> tuple[int | None, int | None, float]:
+    """Camera's width, height and timeout_s, checked: TypeError for a width or height that is
+    not an int, ArgumentError for one below 1 or a timeout that is not a positive number."""
+    if width is not None:
+        width = _check_positive_int(width, "width", 1)
+    if height is not None:
+        height = _check_positive_int(height, "height", 1)
+    if (
+        isinstance(timeout_s, bool)
+        or not isinstance(timeout_s, int | float)
+        or not (math.isfinite(timeout_s) and timeout_s > 0)
+    ):
+        raise ArgumentError(f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
+    return width, height, float(timeout_s)
+
+
+def _opener(
+    source: object, timeout_ms: int, width: int | None, height: int | None, color: bool
+) -> tuple[SourceKind, str, Callable[[], Backend]]:
+    """What ``source`` names, by its type: the kind (a path counts as a file until it is
+    opened, since it may turn out to be a folder), the label for messages, and the function
+    that opens it on the worker. TypeError for a source that is none of them."""
+    if isinstance(source, bool):
+        raise TypeError(f"source must be a device index, a URL or a path, got {source!r}")
+    if isinstance(source, int | np.integer):
+        index = _check_positive_int(source, "a device index", 0)
+        label = f"camera device {index}"
+        return "device", label, lambda: open_device(index, label, timeout_ms, width, height)
+    if isinstance(source, str) and "://" in source:
+        url = source
+        label = f"stream {redact(url)!r}"
+        return "stream", label, lambda: open_stream(url, label, timeout_ms)
+    if isinstance(source, str | os.PathLike):
+        path = os.fspath(source)
+        if not isinstance(path, str) or not path:
+            raise TypeError(f"source must be a non-empty str path, got {source!r}")
+        # "video file ..." or "image folder ..." once opened
+        return "file", repr(path), lambda: open_path(path, timeout_ms, width, height, color)
+    raise TypeError(f"source must be a device index, a URL or a path, got {source!r}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -464,7 +170,9 @@ class Camera:
     Raises:
         CameraError: the source cannot be opened, does not answer within ``timeout_s``,
             delivers no frame, or does not have the requested resolution.
-        TypeError, ValueError: arguments of the wrong type or range.
+        TypeError: an argument of the wrong type (a source that is no index, URL or path;
+            a width or height that is not an int).
+        ArgumentError: an argument out of range (a ValueError).
 
     Use as a context manager, or call ``close()``.
     """
@@ -480,57 +188,14 @@ class Camera:
     ) -> None:
         self._closed = True  # until opened: __del__ and close() of a failed __init__ are no-ops
         self._source = source
-        if width is not None:
-            width = _check_positive_int(width, "width", 1)
-        if height is not None:
-            height = _check_positive_int(height, "height", 1)
-        if (
-            isinstance(timeout_s, bool)
-            or not isinstance(timeout_s, int | float)
-            or not (math.isfinite(timeout_s) and timeout_s > 0)
-        ):
-            raise ValueError(f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
-        self._timeout_s = float(timeout_s)
+        width, height, self._timeout_s = _check_options(width, height, timeout_s)
         self._color = bool(color)
         timeout_ms = round((self._timeout_s + BACKEND_GRACE_S) * 1000)
-
-        opener: Callable[[], _Backend]
-        self._kind: _Kind = "file"  # until opened: a path may turn out to be a folder
-        if isinstance(source, bool):
-            raise TypeError(f"source must be a device index, a URL or a path, got {source!r}")
-        if isinstance(source, int | np.integer):
-            index = _check_positive_int(source, "a device index", 0)
-            self._kind = "device"
-            self._label = f"camera device {index}"
-            label = self._label
-
-            def opener() -> _Backend:
-                return _open_device(index, label, timeout_ms, width, height)
-
-        elif isinstance(source, str) and "://" in source:
-            self._kind = "stream"
-            self._label = f"stream {_redact(source)!r}"
-            label = self._label
-
-            def opener() -> _Backend:
-                return _open_stream(source, label, timeout_ms)
-
-        elif isinstance(source, str | os.PathLike):
-            path = os.fspath(source)
-            if not isinstance(path, str) or not path:
-                raise TypeError(f"source must be a non-empty str path, got {source!r}")
-            self._label = repr(path)  # "video file ..." or "image folder ..." once opened
-            color_ = self._color
-
-            def opener() -> _Backend:
-                return _open_path(path, timeout_ms, width, height, color_)
-
-        else:
-            raise TypeError(f"source must be a device index, a URL or a path, got {source!r}")
+        self._kind, self._label, opener = _opener(source, timeout_ms, width, height, self._color)
 
         self._lock = threading.Lock()
-        self._slot = _Slot()
-        self._worker = _Worker(name=f"planarcal-camera {self._label}")
+        self._slot = BackendSlot()
+        self._worker = Worker(name=f"planarcal-camera {self._label}")
         self._frames_read = 0
         self._ended = False
         self._closed_because = ""
@@ -538,31 +203,36 @@ class Camera:
         self._resolution = (0, 0)
         self._pending: Frame | None = None
         self._closed = False
+        try:
+            self._pending = self._open(opener, width, height)
+        except BaseException:
+            self.close()
+            raise
+
+    def _open(self, opener: Callable[[], Backend], width: int | None, height: int | None) -> Frame:
+        """Opens the source on the worker and reads its first frame, which sets the
+        resolution (and must have the one requested); returns that frame."""
         slot = self._slot
 
-        def open_job() -> _Backend:
+        def open_job() -> Backend:
             backend = opener()
             slot.backend = backend
             return backend
 
-        try:
-            backend = self._call(open_job, "open")
-            self._label = backend.label
-            self._kind = backend.kind
-            self._fps = backend.fps
-            got = self._call(self._read_job, "deliver its first frame")
-            if got is None:
-                raise CameraError(self._no_first_frame_message())
-            first = got[0]
-            self._resolution = (int(first.shape[1]), int(first.shape[0]))
-            if (width is not None and width != self._resolution[0]) or (
-                height is not None and height != self._resolution[1]
-            ):
-                raise CameraError(self._resolution_message(width, height))
-        except BaseException:
-            self.close()
-            raise
-        self._pending = first
+        backend = self._call(open_job, "open")
+        self._label = backend.label
+        self._kind = backend.kind
+        self._fps = backend.fps
+        got = self._call(self._read_job, "deliver its first frame")
+        if got is None:
+            raise CameraError(self._no_first_frame_message())
+        first = got[0]
+        self._resolution = (int(first.shape[1]), int(first.shape[0]))
+        if (width is not None and width != self._resolution[0]) or (
+            height is not None and height != self._resolution[1]
+        ):
+            raise CameraError(self._resolution_message(width, height))
+        return first
 
     # -- properties ----------------------------------------------------------------------------
 
@@ -728,7 +398,7 @@ class Camera:
             if not self._worker.stopped:
                 try:
                     self._worker.call(self._slot.release, self._timeout_s)
-                except _WorkerTimeoutError:
+                except WorkerTimeoutError:
                     self._worker.stop(self._slot.release)
                 finally:
                     self._worker.stop()
@@ -746,7 +416,7 @@ class Camera:
 
     def __del__(self) -> None:
         # Never blocks: an unclosed Camera's worker releases the capture and exits.
-        worker: _Worker | None = getattr(self, "_worker", None)
+        worker: Worker | None = getattr(self, "_worker", None)
         if worker is not None:
             worker.stop(self._slot.release)
 
@@ -771,7 +441,7 @@ class Camera:
         """Run ``fn`` on the worker, waiting at most timeout_s; on a timeout, close."""
         try:
             return self._worker.call(fn, self._timeout_s)
-        except _WorkerTimeoutError:
+        except WorkerTimeoutError:
             self._closed = True
             self._closed_because = (
                 f" (it did not {action} within {self._timeout_s:g} s after "
