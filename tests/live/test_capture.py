@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
-from planarcal.errors import CameraError
+from planarcal.errors import ArgumentError, CameraError
 from planarcal.live.capture import BACKEND_GRACE_S, Camera
 
 W, H = 80, 64
@@ -108,7 +108,7 @@ def test_frames_n_past_the_end_raises(video: Path) -> None:
         assert len(list(cam.frames(5))) == 5
         with pytest.raises(CameraError, match="after 12 frames"):
             list(cam.frames(N_FRAMES))
-        with pytest.raises(ValueError):
+        with pytest.raises(ArgumentError):  # a ValueError too
             cam.frames(-1)
 
 
@@ -210,7 +210,7 @@ def test_average_of_video_and_past_the_end(video: Path) -> None:
         assert np.abs(one - scene(0)).mean() < 4
         with pytest.raises(CameraError, match=r"after 11 frames, nothing returned"):
             cam.average(N_FRAMES)  # only 11 left
-        with pytest.raises(ValueError):
+        with pytest.raises(ArgumentError):  # a ValueError too
             cam.average(0)
 
 
@@ -287,8 +287,10 @@ def test_empty_folder(tmp_path: Path) -> None:
     ],
 )
 def test_bad_arguments(args: tuple[object, ...], kwargs: dict[str, object], error: type) -> None:
-    with pytest.raises(error):
+    with pytest.raises(error) as info:
         Camera(*args, **kwargs)  # type: ignore[arg-type]
+    if error is ValueError:  # an argument out of range: planarcal's own, still a ValueError
+        assert isinstance(info.value, ArgumentError)
 
 
 # -- devices and streams (loopback only) ----------------------------------------------------------
