@@ -6,16 +6,94 @@ webcam's JPEG (:func:`jpeg`).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal import arguments
 from planarcal.errors import ImageError
 from planarcal.synth.camera import CameraModel
 from planarcal.synth.scene import _TABLE
 
 F64 = NDArray[np.float64]
+
+
+class _ImageEffects(NamedTuple):
+    """render_scene's image effects, checked (see there)."""
+
+    blur: float  # px
+    noise: float  # grey levels
+    gradient: float
+    light_angle: float  # degrees
+    vignette: float
+    textures: dict[str, float]  # table_texture, paper_texture: grey levels
+
+    def record(self) -> dict[str, float]:
+        """The effects by render_scene's argument names (the textures apart)."""
+        return {
+            "blur_sigma_px": self.blur,
+            "noise_sigma": self.noise,
+            "lighting_gradient": self.gradient,
+            "lighting_angle_deg": self.light_angle,
+            "vignette": self.vignette,
+        }
+
+
+def _checked_image_effects(
+    blur_sigma_px: float,
+    noise_sigma: float,
+    lighting_gradient: float,
+    lighting_angle_deg: float,
+    vignette: float,
+    table_texture: float,
+    paper_texture: float,
+) -> _ImageEffects:
+    """render_scene's effects arguments, checked; ImageError for one out of range."""
+    blur = arguments.real("blur_sigma_px", blur_sigma_px, ImageError)
+    noise = arguments.real("noise_sigma", noise_sigma, ImageError)
+    gradient = arguments.real("lighting_gradient", lighting_gradient, ImageError)
+    light_angle = arguments.real("lighting_angle_deg", lighting_angle_deg, ImageError)
+    vig = arguments.real("vignette", vignette, ImageError)
+    textures = {
+        name: arguments.real(name, value, ImageError)
+        for name, value in (("table_texture", table_texture), ("paper_texture", paper_texture))
+    }
+    for name, value in textures.items():
+        if not 0.0 <= value <= 255.0:
+            raise ImageError(f"{name} must be 0 to 255 grey levels, got {value!r}")
+    if not 0.0 <= blur <= 50.0:
+        raise ImageError(f"blur_sigma_px must be 0 to 50 px, got {blur_sigma_px!r}")
+    if noise < 0.0:
+        raise ImageError(f"noise_sigma must be >= 0 grey levels, got {noise_sigma!r}")
+    if not 0.0 <= gradient < 2.0:
+        raise ImageError(f"lighting_gradient must be in [0, 2), got {lighting_gradient!r}")
+    if not 0.0 <= vig < 1.0:
+        raise ImageError(f"vignette must be in [0, 1), got {vignette!r}")
+    return _ImageEffects(blur, noise, gradient, light_angle, vig, textures)
+
+
+def _apply_image_effects(
+    radiance: NDArray[np.float32], camera: CameraModel, effects: _ImageEffects, seed: int
+) -> NDArray[np.uint8]:
+    """The evenly lit, sharp image (float32, grey or BGR; changed in place) photographed:
+    the lighting's gain, the blur, the noise (from ``default_rng(seed)``), rounded to uint8."""
+    if effects.gradient or effects.vignette:
+        gain = _lighting(camera, effects.gradient, effects.light_angle, effects.vignette)
+        radiance *= gain if radiance.ndim == 2 else gain[:, :, None]
+    if effects.blur > 0.0:
+        blur = effects.blur
+        radiance = np.asarray(
+            cv2.GaussianBlur(
+                radiance, (0, 0), sigmaX=blur, sigmaY=blur, borderType=cv2.BORDER_REFLECT
+            ),
+            dtype=np.float32,
+        )
+    if effects.noise > 0.0:
+        rng = np.random.default_rng(seed)
+        radiance += rng.normal(0.0, effects.noise, radiance.shape).astype(np.float32)
+    return np.clip(np.rint(radiance), 0, 255).astype(np.uint8)
 
 
 def _lighting(camera: CameraModel, gradient: float, angle_deg: float, vig: float) -> F64:

@@ -56,7 +56,6 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -65,7 +64,12 @@ from planarcal.calib.board import CircleGridBoard
 from planarcal.errors import BoardError, ImageError
 from planarcal.synth.camera import CameraModel, PlanePose, View
 from planarcal.synth.dots import _board_to_table, _dot_diameters
-from planarcal.synth.effects import _lighting, _plane_texture
+from planarcal.synth.effects import (
+    _apply_image_effects,
+    _checked_image_effects,
+    _ImageEffects,
+    _plane_texture,
+)
 from planarcal.synth.marks import _mark_on_table
 from planarcal.synth.objects import SceneObject
 from planarcal.synth.scene import _PAPER, _TABLE, _Scene
@@ -273,25 +277,101 @@ def render_scene(
     camera = CameraModel() if camera is None else camera
     if not isinstance(camera, CameraModel):
         raise ValueError(f"camera must be a CameraModel, got {type(camera).__name__}")
+    origin, angle, margin = _checked_board(board, board_origin_mm, board_angle_deg, paper_margin_mm)
+    diameters = None if board is None else _dot_diameters(board, enlarged_dots)
+    pose = _default_pose(board, origin, angle) if pose is None else pose
+    if not isinstance(pose, PlanePose):
+        raise ValueError(f"pose must be a PlanePose, got {type(pose).__name__}")
+    objs, printed = _checked_layers(objects, marks)
+    tones = _checked_tones(table_grey, paper_grey, ink_grey, metal_grey, side_grey)
+    effects = _checked_image_effects(
+        blur_sigma_px,
+        noise_sigma,
+        lighting_gradient,
+        lighting_angle_deg,
+        vignette,
+        table_texture,
+        paper_texture,
+    )
+    _check_whole_numbers(supersample, seed)
+    camera_centre = pose.camera_centre_mm()
+    _check_below_camera(objs, camera_centre)
+
+    # Marks are the first flat layers (over the board, under the objects).
+    layers = tuple(_mark_on_table(m, origin, angle) for m in printed) + objs
+    scene = _Scene(board, origin, angle, margin, layers, camera_centre, diameters)
+    lut = _tones(tones, layers, len(printed), light_on_dark=bool(light_on_dark), color=bool(color))
+    radiance = _evenly_lit(
+        camera, pose, scene, lut, effects, int(supersample), int(seed), color=bool(color)
+    )
+    image = _apply_image_effects(radiance, camera, effects, int(seed))
+    assert image.shape[:2] == (camera.height, camera.width)
+
+    h_world = camera.homography(pose)
+    dots_px, h_board = _board_truth(camera, pose, board, origin, angle, h_world)
+    record: dict[str, float | int | bool] = {
+        **tones,
+        **effects.record(),
+        "light_on_dark": bool(light_on_dark),
+        "color": bool(color),
+        "seed": int(seed),
+        "supersample": int(supersample),
+        "paper_margin_mm": margin,
+        **effects.textures,
+    }
+    return RenderedScene(
+        image=image,
+        dot_centres_px=dots_px,
+        object_centroids_px=_object_centroids_px(camera, pose, objs),
+        objects=objs,
+        board=board,
+        board_origin_mm=origin,
+        board_angle_deg=angle,
+        camera=camera,
+        pose=pose,
+        world_to_image=h_world,
+        board_to_image=h_board,
+        effects=record,
+        dot_diameters_mm=np.zeros(0) if diameters is None else diameters,
+        marks=printed,
+    )
+
+
+def _checked_board(
+    board: CircleGridBoard | None,
+    origin_mm: tuple[float, float],
+    angle_deg: float,
+    paper_margin_mm: float,
+) -> tuple[tuple[float, float], float, float]:
+    """The board's placement, checked: (origin, angle, paper margin); BoardError if bad."""
     if board is not None and not isinstance(board, CircleGridBoard):
         raise BoardError(f"board must be a CircleGridBoard or None, got {type(board).__name__}")
-    origin = arguments.pair("board_origin_mm", board_origin_mm, BoardError)
-    angle = arguments.real("board_angle_deg", board_angle_deg, BoardError)
+    origin = arguments.pair("board_origin_mm", origin_mm, BoardError)
+    angle = arguments.real("board_angle_deg", angle_deg, BoardError)
     margin = arguments.real("paper_margin_mm", paper_margin_mm, BoardError)
     if margin < 0:
         raise BoardError(f"paper_margin_mm must be >= 0, got {paper_margin_mm!r}")
-    diameters = None if board is None else _dot_diameters(board, enlarged_dots)
-    if pose is None:
-        centre = np.zeros(2)
-        if board is not None:
-            middle = np.array([[board.cols - 1, board.rows - 1]]) * (board.pitch / 2.0)
-            if board.layout == "asymmetric":
-                pts = board.world_points()
-                middle = 0.5 * (pts.min(axis=0) + pts.max(axis=0))[None, :]
-            centre = _board_to_table(middle, origin, angle)[0]
-        pose = PlanePose(500.0, look_at_mm=(float(centre[0]), float(centre[1])))
-    if not isinstance(pose, PlanePose):
-        raise ValueError(f"pose must be a PlanePose, got {type(pose).__name__}")
+    return origin, angle, margin
+
+
+def _default_pose(
+    board: CircleGridBoard | None, origin: tuple[float, float], angle: float
+) -> PlanePose:
+    """500 mm straight above the middle of the board's dots (the table origin without one)."""
+    centre = np.zeros(2)
+    if board is not None:
+        middle = np.array([[board.cols - 1, board.rows - 1]]) * (board.pitch / 2.0)
+        if board.layout == "asymmetric":
+            pts = board.world_points()
+            middle = 0.5 * (pts.min(axis=0) + pts.max(axis=0))[None, :]
+        centre = _board_to_table(middle, origin, angle)[0]
+    return PlanePose(500.0, look_at_mm=(float(centre[0]), float(centre[1])))
+
+
+def _checked_layers(
+    objects: Sequence[SceneObject], marks: Sequence[SceneObject]
+) -> tuple[tuple[SceneObject, ...], tuple[SceneObject, ...]]:
+    """The objects and the printed marks as tuples, checked (marks must be flat)."""
     objs = tuple(objects)
     for i, o in enumerate(objs):
         if not isinstance(o, SceneObject):
@@ -302,6 +382,18 @@ def render_scene(
             raise ValueError(f"marks[{i}] must be a SceneObject, got {type(o).__name__}")
         if o.height_mm != 0.0:
             raise ValueError(f"marks[{i}] must be flat (height_mm 0): marks are printed")
+    return objs, printed
+
+
+def _checked_tones(
+    table_grey: float,
+    paper_grey: float,
+    ink_grey: float,
+    metal_grey: float,
+    side_grey: float | None,
+) -> dict[str, float]:
+    """The materials' grey levels by argument name, side_grey's default filled in; ImageError
+    for one outside 0-255."""
     tones = {
         name: arguments.real(name, value, ImageError)
         for name, value in (
@@ -319,26 +411,11 @@ def render_scene(
     for name, value in tones.items():
         if not 0.0 <= value <= 255.0:
             raise ImageError(f"{name} must be a grey level 0-255, got {value!r}")
-    blur = arguments.real("blur_sigma_px", blur_sigma_px, ImageError)
-    noise = arguments.real("noise_sigma", noise_sigma, ImageError)
-    gradient = arguments.real("lighting_gradient", lighting_gradient, ImageError)
-    light_angle = arguments.real("lighting_angle_deg", lighting_angle_deg, ImageError)
-    vig = arguments.real("vignette", vignette, ImageError)
-    textures = {
-        name: arguments.real(name, value, ImageError)
-        for name, value in (("table_texture", table_texture), ("paper_texture", paper_texture))
-    }
-    for name, value in textures.items():
-        if not 0.0 <= value <= 255.0:
-            raise ImageError(f"{name} must be 0 to 255 grey levels, got {value!r}")
-    if not 0.0 <= blur <= 50.0:
-        raise ImageError(f"blur_sigma_px must be 0 to 50 px, got {blur_sigma_px!r}")
-    if noise < 0.0:
-        raise ImageError(f"noise_sigma must be >= 0 grey levels, got {noise_sigma!r}")
-    if not 0.0 <= gradient < 2.0:
-        raise ImageError(f"lighting_gradient must be in [0, 2), got {lighting_gradient!r}")
-    if not 0.0 <= vig < 1.0:
-        raise ImageError(f"vignette must be in [0, 1), got {vignette!r}")
+    return tones
+
+
+def _check_whole_numbers(supersample: int, seed: int) -> None:
+    """ImageError unless supersample is 1 to 32 and seed a non-negative whole number."""
     if isinstance(supersample, bool) or not isinstance(supersample, int | np.integer):
         raise ImageError(f"supersample must be a whole number, got {supersample!r}")
     if not 1 <= supersample <= 32:
@@ -346,109 +423,104 @@ def render_scene(
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ImageError(f"seed must be a non-negative whole number, got {seed!r}")
 
-    camera_centre = pose.camera_centre_mm()
-    for i, o in enumerate(objs):
+
+def _check_below_camera(objects: Sequence[SceneObject], camera_centre: F64) -> None:
+    """ValueError for an object as high as the camera (or higher)."""
+    for i, o in enumerate(objects):
         if o.height_mm >= -camera_centre[2]:
             raise ValueError(
                 f"objects[{i}].height_mm ({o.height_mm!r}) reaches the camera, which is "
                 f"{-camera_centre[2]:.6g} mm above the table"
             )
-    # Marks are the first flat layers (over the board, under the objects).
-    layers = tuple(_mark_on_table(m, origin, angle) for m in printed) + objs
-    scene = _Scene(board, origin, angle, margin, layers, camera_centre, diameters)
-    lut = _tones(tones, layers, len(printed), light_on_dark=bool(light_on_dark), color=bool(color))
-    textured = [
-        (k, v)
-        for k, v in ((_TABLE, textures["table_texture"]), (_PAPER, textures["paper_texture"]))
-        if v > 0.0
-    ]
+
+
+def _evenly_lit(
+    camera: CameraModel,
+    pose: PlanePose,
+    scene: _Scene,
+    lut: F64,
+    effects: _ImageEffects,
+    n: int,
+    seed: int,
+    *,
+    color: bool,
+) -> NDArray[np.float32]:
+    """The image before lighting, blur and noise, float32: (height, width) grey or
+    (height, width, 3) BGR, with the table's and the paper's textures where they show."""
+    amplitudes = (
+        (_TABLE, effects.textures["table_texture"]),
+        (_PAPER, effects.textures["paper_texture"]),
+    )
+    textured = [(material, v) for material, v in amplitudes if v > 0.0]
     if textured:
-        # One more channel per textured material: the fraction of each pixel it covers.
-        shares = np.zeros((len(lut), len(textured)))
-        for j, (material, _) in enumerate(textured):
-            shares[material, j] = 1.0
-        radiance, plane_x, plane_y = _radiance(
-            camera, pose, scene, np.hstack([lut, shares]), int(supersample)
-        )
-        channels = lut.shape[1]
-        for j, (material, amplitude) in enumerate(textured):
-            pattern = _plane_texture(plane_x, plane_y, material, int(seed)) * amplitude
-            covered = pattern * radiance[:, :, channels + j]
-            tint = _TINT_TABLE if material == _TABLE else _TINT_PAPER
-            for ch in range(channels):
-                radiance[:, :, ch] += covered * (tint[ch] if color else 1.0)
-        radiance = radiance[:, :, :channels]
+        radiance = _textured_radiance(camera, pose, scene, lut, textured, n, seed, color=color)
     else:
-        radiance, _, _ = _radiance(camera, pose, scene, lut, int(supersample))
+        radiance, _, _ = _radiance(camera, pose, scene, lut, n)
     if not color:
         radiance = np.ascontiguousarray(radiance[:, :, 0])
+    return radiance
 
-    w, h = camera.width, camera.height
-    if gradient or vig:
-        gain = _lighting(camera, gradient, light_angle, vig)
-        radiance *= gain if radiance.ndim == 2 else gain[:, :, None]
-    if blur > 0.0:
-        radiance = np.asarray(
-            cv2.GaussianBlur(
-                radiance, (0, 0), sigmaX=blur, sigmaY=blur, borderType=cv2.BORDER_REFLECT
-            ),
-            dtype=np.float32,
-        )
-    if noise > 0.0:
-        rng = np.random.default_rng(int(seed))
-        radiance += rng.normal(0.0, noise, radiance.shape).astype(np.float32)
-    image = np.clip(np.rint(radiance), 0, 255).astype(np.uint8)
 
-    h_world = camera.homography(pose)
-    if board is not None:
-        dots_mm = _board_to_table(board.world_points(), origin, angle)
-        dots_px = camera.project(dots_mm, pose)
-        b2t = np.array(
-            [
-                [math.cos(math.radians(angle)), -math.sin(math.radians(angle)), origin[0]],
-                [math.sin(math.radians(angle)), math.cos(math.radians(angle)), origin[1]],
-                [0.0, 0.0, 1.0],
-            ]
-        )
-        h_board: F64 | None = h_world @ b2t
-        assert h_board is not None
-        h_board = h_board / h_board[2, 2]
-    else:
-        dots_px, h_board = np.zeros((0, 2)), None
-    centroids = np.array([o.position_mm for o in objs], dtype=np.float64).reshape(-1, 2)
-    heights = np.array([float(o.height_mm) for o in objs], dtype=np.float64)
-    centroids_px = camera.project(centroids, pose, heights) if len(objs) else np.zeros((0, 2))
-    effects: dict[str, float | int | bool] = {
-        **tones,
-        "blur_sigma_px": blur,
-        "noise_sigma": noise,
-        "lighting_gradient": gradient,
-        "lighting_angle_deg": light_angle,
-        "vignette": vig,
-        "light_on_dark": bool(light_on_dark),
-        "color": bool(color),
-        "seed": int(seed),
-        "supersample": int(supersample),
-        "paper_margin_mm": margin,
-        **textures,
-    }
-    assert image.shape[:2] == (h, w)
-    return RenderedScene(
-        image=image,
-        dot_centres_px=dots_px,
-        object_centroids_px=centroids_px,
-        objects=objs,
-        board=board,
-        board_origin_mm=origin,
-        board_angle_deg=angle,
-        camera=camera,
-        pose=pose,
-        world_to_image=h_world,
-        board_to_image=h_board,
-        effects=effects,
-        dot_diameters_mm=np.zeros(0) if diameters is None else diameters,
-        marks=printed,
+def _textured_radiance(
+    camera: CameraModel,
+    pose: PlanePose,
+    scene: _Scene,
+    lut: F64,
+    textured: Sequence[tuple[int, float]],
+    n: int,
+    seed: int,
+    *,
+    color: bool,
+) -> NDArray[np.float32]:
+    """_radiance with each (material, amplitude) of ``textured`` given its texture, added in
+    proportion to the share of each pixel that the material covers (tinted like it)."""
+    # One more channel per textured material: the fraction of each pixel it covers.
+    shares = np.zeros((len(lut), len(textured)))
+    for j, (material, _) in enumerate(textured):
+        shares[material, j] = 1.0
+    radiance, plane_x, plane_y = _radiance(camera, pose, scene, np.hstack([lut, shares]), n)
+    channels = lut.shape[1]
+    for j, (material, amplitude) in enumerate(textured):
+        pattern = _plane_texture(plane_x, plane_y, material, seed) * amplitude
+        covered = pattern * radiance[:, :, channels + j]
+        tint = _TINT_TABLE if material == _TABLE else _TINT_PAPER
+        for ch in range(channels):
+            radiance[:, :, ch] += covered * (tint[ch] if color else 1.0)
+    return radiance[:, :, :channels]
+
+
+def _board_truth(
+    camera: CameraModel,
+    pose: PlanePose,
+    board: CircleGridBoard | None,
+    origin: tuple[float, float],
+    angle: float,
+    h_world: F64,
+) -> tuple[F64, F64 | None]:
+    """The dots' centres in the image (exact, lens included) and the board -> image
+    homography (H[2, 2] = 1); (0, 2) and None without a board."""
+    if board is None:
+        return np.zeros((0, 2)), None
+    dots_mm = _board_to_table(board.world_points(), origin, angle)
+    dots_px = camera.project(dots_mm, pose)
+    b2t = np.array(
+        [
+            [math.cos(math.radians(angle)), -math.sin(math.radians(angle)), origin[0]],
+            [math.sin(math.radians(angle)), math.cos(math.radians(angle)), origin[1]],
+            [0.0, 0.0, 1.0],
+        ]
     )
+    h_board = h_world @ b2t
+    return dots_px, h_board / h_board[2, 2]
+
+
+def _object_centroids_px(
+    camera: CameraModel, pose: PlanePose, objects: Sequence[SceneObject]
+) -> F64:
+    """Each object's truth in the image: the projection of its top face's centroid."""
+    centroids = np.array([o.position_mm for o in objects], dtype=np.float64).reshape(-1, 2)
+    heights = np.array([float(o.height_mm) for o in objects], dtype=np.float64)
+    return camera.project(centroids, pose, heights) if len(objects) else np.zeros((0, 2))
 
 
 def _tones(
