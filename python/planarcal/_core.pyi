@@ -9,7 +9,6 @@ from planarcal.homography.robust import RobustMethod, StopReason
 
 __all__ = [
     "FittedPlane",
-    "PlaneMapper",
     "RobustResult",
     "Tracks",
     "__version__",
@@ -58,6 +57,8 @@ class FittedPlane:
     @property
     def lens_params(self) -> str: ...
     @property
+    def lens_inverse(self) -> str: ...
+    @property
     def lens_std(self) -> tuple[float, float, float, float]: ...
     @property
     def cost(self) -> float: ...
@@ -79,32 +80,6 @@ class FittedPlane:
     def predicted_loo_covariance(self) -> NDArray[np.float64]: ...
     def undistort(self, px: ArrayLike) -> NDArray[np.float64]: ...
     def distort(self, px: ArrayLike) -> NDArray[np.float64]: ...
-
-@final
-class PlaneMapper:
-    def __new__(cls, plane: FittedPlane, image_size: tuple[float, float]) -> PlaneMapper: ...
-    @staticmethod
-    def from_parameters(
-        h: ArrayLike,
-        lens_centre: tuple[float, float],
-        lens_scale: float,
-        k1: float,
-        k2: float,
-        image_size: tuple[float, float],
-    ) -> PlaneMapper: ...
-    def image_to_world(
-        self, px: ArrayLike, out: NDArray[np.float64] | None = None, invalid: str = "raise"
-    ) -> NDArray[np.float64]: ...
-    @property
-    def homography(self) -> NDArray[np.float64]: ...
-    @property
-    def lens(self) -> tuple[float, float, float, float, float]: ...
-    @property
-    def image_size(self) -> tuple[float, float]: ...
-    @property
-    def approximation(self) -> str: ...
-    @property
-    def max_error_px(self) -> float: ...
 
 def estimate_homography(
     src: ArrayLike, dst: ArrayLike, solver: str = "normalized_dlt", refine: bool = False

@@ -8,8 +8,9 @@
 //! fit; `threads` keeps them off the thread pool in forked children. `estimate` ties these
 //! together. Beyond the homography, `lens` models radial distortion, `plane_model` fits it
 //! jointly with H, `uncertainty` maps pixels through that fit with their covariance, and
-//! `leave_one_out` gives the honest error of each point; `mapper` maps the production loop's
-//! pixels to the plane in batches at memory speed, with the same answers; `contours` measures a
+//! `leave_one_out` gives the honest error of each point; `mapper` maps pixels to the plane in
+//! batches at memory speed, with the same answers, and `fitted_mapper` pairs it with a fit to
+//! give each point's uncertainty too (what the bindings map through); `contours` measures a
 //! frame's traced object outlines (`image`, `smooth`, `outline`: moved to the grey-level edge,
 //! sub-pixel)
 //! and `tracking` keeps their IDs from frame to frame.
@@ -27,6 +28,7 @@ mod dlt;
 mod dot_centres;
 mod error;
 mod estimate;
+mod fitted_mapper;
 mod image;
 mod leave_one_out;
 mod lens;
@@ -58,6 +60,7 @@ pub use estimate::{
     estimate, estimate_homography, refine_homography, with_unit_h33, Estimate, Solver,
     UnknownSolver,
 };
+pub use fitted_mapper::{FittedMapper, UncertaintyError};
 pub use image::{median_grey, GreyU8};
 pub use leave_one_out::leave_one_out;
 pub use lens::{LensError, RadialLens};

@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use crate::lens::{LensError, RadialLens};
 use crate::plane_model::PlaneModel;
 use crate::threads;
-use crate::transform::{invert, PARALLEL_MIN_POINTS};
+use crate::transform::PARALLEL_MIN_POINTS;
 use crate::uncertainty::{InversePlane, MapFailure};
 use crate::Point;
 
@@ -607,12 +607,26 @@ impl PlaneMapper {
         image_size: [f64; 2],
         tolerance_px: Option<f64>,
     ) -> Result<Self, LensError> {
-        let [width, height] = image_size;
-        if !(width >= 1.0 && height >= 1.0 && width.is_finite() && height.is_finite()) {
-            return Err(LensError::InvalidImageSize { width, height });
-        }
+        let [width, height] = checked_size(image_size)?;
         let reference = InversePlane::new(model)?.within_image(width, height);
-        let hinv = invert(&model.h)?;
+        Ok(Self::from_reference(
+            model,
+            image_size,
+            reference,
+            tolerance_px,
+        ))
+    }
+
+    /// The mapper of `reference`, which is `InversePlane::new(model)` within an image of
+    /// `image_size` (checked): it vouches for the model, so nothing here can fail.
+    pub(crate) fn from_reference(
+        model: &PlaneModel,
+        image_size: [f64; 2],
+        reference: InversePlane,
+        tolerance_px: Option<f64>,
+    ) -> Self {
+        let [width, height] = image_size;
+        let hinv = reference.hinv();
         let m = [0, 1, 2].map(|r| [0, 1, 2].map(|c| hinv[(r, c)]));
         let lens = model.lens;
         let [cx, cy] = lens.centre;
@@ -641,14 +655,14 @@ impl PlaneMapper {
             fit_undistortion(&mut fast, &lens, radius, tolerance_px)
                 .unwrap_or((Kernel::Reference, Undistortion::Newton))
         };
-        Ok(PlaneMapper {
+        PlaneMapper {
             model: *model,
             image_size,
             reference,
             fast,
             kernel,
             undistortion,
-        })
+        }
     }
 
     /// The model it maps through.
@@ -719,6 +733,15 @@ impl PlaneMapper {
         }
         report
     }
+}
+
+/// `image_size` if it is one: (width, height) of at least a pixel each, finite.
+pub(crate) fn checked_size(image_size: [f64; 2]) -> Result<[f64; 2], LensError> {
+    let [width, height] = image_size;
+    if !(width >= 1.0 && height >= 1.0 && width.is_finite() && height.is_finite()) {
+        return Err(LensError::InvalidImageSize { width, height });
+    }
+    Ok(image_size)
 }
 
 /// Finds the cheapest polynomial kernel that undistorts to the tolerance out to `radius` px
@@ -849,6 +872,7 @@ fn fit_at_radius(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::transform::invert;
     use nalgebra::Matrix3;
 
     const W: f64 = 1280.0;

@@ -67,6 +67,11 @@ impl InversePlane {
         self
     }
 
+    /// H^-1: ideal pixels -> world (mm).
+    pub(crate) fn hinv(&self) -> &Matrix3<f64> {
+        &self.hinv
+    }
+
     /// The world point (mm) pixel d sees.
     #[inline]
     pub fn map(&self, d: Point) -> Result<Point, MapFailure> {
@@ -104,8 +109,18 @@ fn sensitivity(fit: &PlaneFit, w: Point) -> Option<(JacP, Matrix2<f64>)> {
 /// uncertainty, plus that of the pixel's own measurement noise `pixel_sigma` (px per
 /// coordinate) when it is not zero.
 pub fn world_covariance(fit: &PlaneFit, w: Point, pixel_sigma: f64) -> Option<Matrix2<f64>> {
+    covariance_at(fit, &fit.covariance(), w, pixel_sigma)
+}
+
+/// `world_covariance` with the fit's parameter covariance `cov` (`fit.covariance()`) given,
+/// for callers that ask at many points.
+pub(crate) fn covariance_at(
+    fit: &PlaneFit,
+    cov: &MatP,
+    w: Point,
+    pixel_sigma: f64,
+) -> Option<Matrix2<f64>> {
     let (b, inv) = sensitivity(fit, w)?;
-    let cov = fit.covariance();
     Some(b * cov * b.transpose() + inv * inv.transpose() * (pixel_sigma * pixel_sigma))
 }
 

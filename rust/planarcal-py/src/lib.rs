@@ -7,7 +7,6 @@ mod convert;
 mod dot_centres;
 mod errors;
 mod estimate;
-mod mapper;
 mod plane_model;
 mod reprojection;
 mod robust;
@@ -26,7 +25,6 @@ fn _after_fork_in_child() {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<plane_model::FittedPlane>()?;
-    m.add_class::<mapper::PlaneMapper>()?;
     m.add_class::<tracking::Tracks>()?;
     m.add_class::<robust::RobustResult>()?;
     m.add_function(wrap_pyfunction!(tracking::frame_json, m)?)?;

@@ -1,24 +1,25 @@
 //! The plane seen through a lens (planarcal_core::plane_model): a fitted model that maps
-//! pixels to the plane with their uncertainty, and its leave-one-out predictions.
+//! pixels to the plane with their uncertainty (planarcal_core::FittedMapper: the fast mapper
+//! and the fit's covariance), and its leave-one-out predictions.
 
 use nalgebra::Matrix2;
 use numpy::{PyArray1, PyArrayMethods};
 use planarcal_core::{
-    fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, world_covariance,
-    InversePlane, LensParams, MapFailure, PlaneFit, PlaneModel, Point, RadialLens,
+    fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, FittedMapper, LensParams,
+    MapReport, PlaneFit, PlaneModel, Point, RadialLens, UncertaintyError,
 };
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
 use crate::errors::{invalid, lens_to_py, no_place, LensModelError};
 use crate::estimate::matrix_out;
-use crate::transform::{maybe_detach, on_invalid, OnInvalid};
+use crate::transform::{maybe_detach, new_array, on_invalid, OnInvalid};
 
 /// A homography from the plane (mm) to ideal pixels and a radial lens, fitted to points.
 #[pyclass(frozen, module = "planarcal._core")]
 pub struct FittedPlane {
-    fit: PlaneFit,
-    inverse: InversePlane,
+    /// The fit, and the fast mapper of its model over the image it was fitted on.
+    mapping: FittedMapper,
     world: Vec<Point>,
     image: Vec<Point>,
 }
@@ -45,71 +46,73 @@ fn array2<'py>(py: Python<'py>, rows: Vec<f64>, cols: &[usize]) -> PyResult<Boun
     Ok(PyArray1::from_vec(py, rows).reshape(shape)?.into_any())
 }
 
-fn map_error(failure: MapFailure, index: usize, failed: usize, total: usize) -> PyErr {
+/// The error for a batch of `total` pixels of which some have no place on the plane, naming
+/// the first; None if all have one.
+fn map_error(report: &MapReport, total: usize) -> Option<PyErr> {
+    let (index, failure) = report.first?;
     let message = format!(
-        "{failed} of {total} pixels have no place on the plane; the first is point {index}, \
-         which {}",
+        "{} of {total} pixels have no place on the plane; the first is point {index}, which {}",
+        report.invalid(),
         failure.describe()
     );
-    no_place(failure, index, message)
+    Some(no_place(failure, index, message))
+}
+
+fn uncertainty_to_py(e: UncertaintyError) -> PyErr {
+    match e {
+        UncertaintyError::InvalidPixelSigma(_) => invalid(e.to_string()),
+        UncertaintyError::NoResidualDof => LensModelError::new_err(e.to_string()),
+    }
 }
 
 impl FittedPlane {
+    /// Every FittedPlane has an image size (`fit` and `at` take one): the mapper refuses
+    /// pixels beyond it as the lens model's, and checks its lens inverse over it. A calibration
+    /// without one passes a box around its points with an ideal lens, which maps every pixel
+    /// through H^-1 alone: the box then bounds nothing, on either path.
     fn new(fit: PlaneFit, world: Vec<Point>, image: Vec<Point>, size: [f64; 2]) -> PyResult<Self> {
-        let inverse = InversePlane::new(&fit.model)
-            .map_err(lens_to_py)?
-            .within_image(size[0], size[1]);
         Ok(FittedPlane {
-            fit,
-            inverse,
+            mapping: FittedMapper::new(fit, size).map_err(lens_to_py)?,
             world,
             image,
         })
     }
 
-    /// The world points of pixels whose uncertainty is asked for: checks pixel_sigma and that
-    /// the fit has residual degrees of freedom, and raises for pixels that cannot be mapped.
-    fn map_for_uncertainty(
-        &self,
-        py: Python<'_>,
-        px: &Bound<'_, PyAny>,
-        pixel_sigma: f64,
-    ) -> PyResult<Vec<f64>> {
-        if !(pixel_sigma >= 0.0 && pixel_sigma.is_finite()) {
-            return Err(invalid(format!(
-                "pixel_sigma must be a finite number >= 0, got {pixel_sigma}"
-            )));
-        }
-        if self.fit.dof == 0 {
-            return Err(LensModelError::new_err(
-                "the fit has no residual degrees of freedom (as many parameters as \
-                 coordinates), so its uncertainty cannot be estimated: use more points",
-            ));
-        }
-        let pts = points2(px, "px")?;
-        let pts = pts.as_points();
-        let (world, first, failed) = maybe_detach(py, pts.len(), || self.map_all(pts));
-        if let Some((i, f)) = first {
-            return Err(map_error(f, i, failed, pts.len()));
-        }
-        Ok(world)
+    fn plane_fit(&self) -> &PlaneFit {
+        self.mapping.fit()
     }
 
-    /// Maps pixels to world points, with the failures' first index and count.
-    fn map_all(&self, px: &[Point]) -> (Vec<f64>, Option<(usize, MapFailure)>, usize) {
-        let mut out = Vec::with_capacity(2 * px.len());
-        let (mut first, mut failed) = (None, 0);
-        for (i, d) in px.iter().enumerate() {
-            match self.inverse.map(*d) {
-                Ok(w) => out.extend_from_slice(&w),
-                Err(f) => {
-                    failed += 1;
-                    first = first.or(Some((i, f)));
-                    out.extend_from_slice(&[f64::NAN, f64::NAN]);
-                }
-            }
+    /// Pixels -> (N x 2 mm, the N values `map` writes beside them), raising for pixels with
+    /// no place on the plane; `map` is the core's, run with the GIL released for large
+    /// batches.
+    fn map_with<'py, T: Send + Clone>(
+        &self,
+        py: Python<'py>,
+        px: &Bound<'py, PyAny>,
+        pixel_sigma: f64,
+        fill: T,
+        map: impl FnOnce(
+                &FittedMapper,
+                &[Point],
+                &mut [Point],
+                &mut [T],
+            ) -> Result<MapReport, UncertaintyError>
+            + Send,
+    ) -> PyResult<(Vec<f64>, Vec<T>)> {
+        // Checked before the pixels, as always.
+        self.mapping
+            .check_uncertainty(pixel_sigma)
+            .map_err(uncertainty_to_py)?;
+        let pts = points2(px, "px")?;
+        let pts = pts.as_points();
+        let n = pts.len();
+        let (mut world, mut extra) = (vec![[f64::NAN; 2]; n], vec![fill; n]);
+        let report = maybe_detach(py, n, || map(&self.mapping, pts, &mut world, &mut extra))
+            .map_err(uncertainty_to_py)?;
+        if let Some(e) = map_error(&report, n) {
+            return Err(e);
         }
-        (out, first, failed)
+        Ok((world.into_flattened(), extra))
     }
 }
 
@@ -170,27 +173,34 @@ impl FittedPlane {
     /// World (mm) -> ideal pixels, 3 x 3, oriented.
     #[getter]
     fn homography<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
-        matrix_out(py, &self.fit.model.h).into_any()
+        matrix_out(py, &self.plane_fit().model.h).into_any()
     }
 
     /// (centre_x, centre_y, scale, k1, k2) of the lens, px.
     #[getter]
     fn lens(&self) -> (f64, f64, f64, f64, f64) {
-        let l = self.fit.model.lens;
+        let l = self.plane_fit().model.lens;
         (l.centre[0], l.centre[1], l.scale, l.k1, l.k2)
     }
 
     /// The free lens parameters' name.
     #[getter]
     fn lens_params(&self) -> &'static str {
-        self.fit.free.name()
+        self.plane_fit().free.name()
+    }
+
+    /// How image_to_world inverts the lens: a description of the checked polynomial (or
+    /// Newton's method, or none for an ideal lens).
+    #[getter]
+    fn lens_inverse(&self) -> String {
+        self.mapping.mapper().undistortion().describe()
     }
 
     /// Standard deviations of (k1, k2, centre_x, centre_y) from the covariance (0 if fixed).
     #[getter]
     fn lens_std(&self) -> (f64, f64, f64, f64) {
-        let c = self.fit.covariance();
-        let s = self.fit.params.frame.scale;
+        let c = self.plane_fit().covariance();
+        let s = self.plane_fit().params.frame.scale;
         (
             c[(8, 8)].sqrt(),
             c[(9, 9)].sqrt(),
@@ -202,30 +212,31 @@ impl FittedPlane {
     /// Sum of squared residuals, px^2.
     #[getter]
     fn cost(&self) -> f64 {
-        self.fit.cost
+        self.plane_fit().cost
     }
 
     /// Residual degrees of freedom, 2 n - parameters.
     #[getter]
     fn dof(&self) -> usize {
-        self.fit.dof
+        self.plane_fit().dof
     }
 
     /// Residual standard deviation per coordinate, px (NaN with no degrees of freedom).
     #[getter]
     fn sigma(&self) -> f64 {
-        self.fit.sigma()
+        self.plane_fit().sigma()
     }
 
     #[getter]
     fn iterations(&self) -> usize {
-        self.fit.iterations
+        self.plane_fit().iterations
     }
 
     /// image_to_world(px, invalid="raise")
     /// --
     ///
-    /// Pixels (N x 2) -> plane (N x 2, mm): undistort, then H^-1.
+    /// Pixels (N x 2) -> plane (N x 2, mm): undistort, then H^-1, by the fast mapper. Pixels
+    /// with no place on the plane are NaN; invalid="raise" then raises, naming the first.
     #[pyo3(signature = (px, invalid = "raise"))]
     fn image_to_world<'py>(
         &self,
@@ -235,12 +246,18 @@ impl FittedPlane {
     ) -> PyResult<Bound<'py, PyAny>> {
         let mode = on_invalid(invalid, "nan")?;
         let pts = points2(px, "px")?;
-        let pts = pts.as_points();
-        let (out, first, failed) = maybe_detach(py, pts.len(), || self.map_all(pts));
-        if let (OnInvalid::Raise, Some((i, f))) = (mode, first) {
-            return Err(map_error(f, i, failed, pts.len()));
+        let src = pts.as_points();
+        let n = src.len();
+        let mapping = &self.mapping;
+        let (out, report) = new_array::<f64, _>(py, &[n, 2], 2 * n, n, |o| {
+            mapping.map_into(src, o.as_chunks_mut::<2>().0)
+        })?;
+        if mode == OnInvalid::Raise {
+            if let Some(e) = map_error(&report, n) {
+                return Err(e);
+            }
         }
-        array2(py, out, &[2])
+        Ok(out.into_any())
     }
 
     /// world_to_image(mm)
@@ -254,7 +271,7 @@ impl FittedPlane {
     ) -> PyResult<Bound<'py, PyAny>> {
         let pts = points2(mm, "mm")?;
         let pts = pts.as_points();
-        let m = self.fit.model;
+        let m = self.plane_fit().model;
         let out: Vec<f64> = maybe_detach(py, pts.len(), || {
             pts.iter()
                 .flat_map(|w| m.world_to_image(*w).unwrap_or([f64::NAN; 2]))
@@ -275,19 +292,10 @@ impl FittedPlane {
         px: &Bound<'py, PyAny>,
         pixel_sigma: f64,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let world = self.map_for_uncertainty(py, px, pixel_sigma)?;
-        let fit = &self.fit;
-        let out: Vec<f64> = maybe_detach(py, world.len() / 2, || {
-            world
-                .chunks_exact(2)
-                .flat_map(|w| {
-                    let c = world_covariance(fit, [w[0], w[1]], pixel_sigma)
-                        .unwrap_or(Matrix2::from_element(f64::NAN));
-                    [c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)]]
-                })
-                .collect()
-        });
-        array2(py, out, &[2, 2])
+        let (_, cov) = self.map_with(py, px, pixel_sigma, [0.0; 4], |m, px, out, cov| {
+            m.map_with_covariance_into(px, pixel_sigma, out, cov)
+        })?;
+        array2(py, cov.into_flattened(), &[2, 2])
     }
 
     /// image_to_world_std(px, pixel_sigma=0.0)
@@ -302,17 +310,9 @@ impl FittedPlane {
         px: &Bound<'py, PyAny>,
         pixel_sigma: f64,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let world = self.map_for_uncertainty(py, px, pixel_sigma)?;
-        let fit = &self.fit;
-        let std: Vec<f64> = maybe_detach(py, world.len() / 2, || {
-            world
-                .chunks_exact(2)
-                .map(|w| {
-                    world_covariance(fit, [w[0], w[1]], pixel_sigma)
-                        .map_or(f64::NAN, |c| c.trace().sqrt())
-                })
-                .collect()
-        });
+        let (world, std) = self.map_with(py, px, pixel_sigma, 0.0, |m, px, out, std| {
+            m.map_with_std_into(px, pixel_sigma, out, std)
+        })?;
         Ok((
             array2(py, world, &[2])?,
             PyArray1::from_vec(py, std).into_any(),
@@ -328,7 +328,7 @@ impl FittedPlane {
         &self,
         py: Python<'py>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let loo = py.detach(|| leave_one_out(&self.fit, &self.world, &self.image));
+        let loo = py.detach(|| leave_one_out(self.plane_fit(), &self.world, &self.image));
         let image: Vec<f64> = loo.iter().flat_map(|p| p.image_px).collect();
         let world: Vec<f64> = loo.iter().flat_map(|p| p.world_mm).collect();
         Ok((array2(py, image, &[2])?, array2(py, world, &[2])?))
@@ -340,12 +340,12 @@ impl FittedPlane {
     /// N x 2 x 2 (mm^2): the covariance each point's leave-one-out error should have if the
     /// model is right and the residuals are its noise.
     fn predicted_loo_covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        if self.fit.dof == 0 {
+        if self.plane_fit().dof == 0 {
             return Err(LensModelError::new_err(
                 "the fit has no residual degrees of freedom: use more points",
             ));
         }
-        let out: Vec<f64> = predicted_loo_covariance(&self.fit, &self.world)
+        let out: Vec<f64> = predicted_loo_covariance(self.plane_fit(), &self.world)
             .into_iter()
             .flat_map(|c| {
                 let c = c.unwrap_or(Matrix2::from_element(f64::NAN));
@@ -365,7 +365,7 @@ impl FittedPlane {
         px: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let pts = points2(px, "px")?;
-        let lens = self.fit.model.lens;
+        let lens = self.plane_fit().model.lens;
         let out: Vec<f64> = pts
             .as_points()
             .iter()
@@ -380,7 +380,7 @@ impl FittedPlane {
     /// Ideal pixels (N x 2) -> the real pixels the lens shows them at.
     fn distort<'py>(&self, py: Python<'py>, px: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let pts = points2(px, "px")?;
-        let lens = self.fit.model.lens;
+        let lens = self.plane_fit().model.lens;
         let out: Vec<f64> = pts
             .as_points()
             .iter()
@@ -392,6 +392,6 @@ impl FittedPlane {
     /// The largest distance from the lens centre (px) the model can undistort.
     #[getter]
     fn valid_radius(&self) -> f64 {
-        self.fit.model.lens.valid_radius()
+        self.plane_fit().model.lens.valid_radius()
     }
 }
