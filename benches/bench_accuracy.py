@@ -30,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from report import cpu_model, table_lines
+from reporting import cpu_model, table_lines
 
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard

@@ -48,7 +48,7 @@ from typing import Any
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from report import cpu_model, load_average, table_lines
+from reporting import cpu_model, load_average, table_lines
 
 import planarcal as pc
 

@@ -72,7 +72,7 @@ from planarcal.errors import BoardError, BoardNotFoundError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from report import cpu_model, load_average, table_lines
+from reporting import cpu_model, load_average, table_lines
 
 F64 = NDArray[np.float64]
 U8 = NDArray[np.uint8]

@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from report import cpu_model, load_average, table_lines
+from reporting import cpu_model, load_average, table_lines
 
 from planarcal import synth
 from planarcal.calib.calibration import Calibration

@@ -62,9 +62,10 @@ from numpy.typing import NDArray
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from reporting import cpu_model, load_average, table_lines
+
 from planarcal._core import FittedPlane
 from planarcal.calib.calibration import Calibration
-from report import cpu_model, load_average, table_lines
 
 F64 = NDArray[np.float64]
 

@@ -83,7 +83,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from report import cpu_model, load_average, table_lines
+from reporting import cpu_model, load_average, table_lines
 
 import planarcal as pc
 
