@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calib.board import CircleGridBoard
+from planarcal.errors import ArgumentError
 from planarcal.synth.camera import CameraModel, PlanePose
 from planarcal.synth.dots import _board_to_table
 from planarcal.synth.effects import jpeg
@@ -332,9 +333,9 @@ BOARD_VARIANTS: Mapping[str, str] = {name: text for name, (_, text) in _VARIANTS
 def board_variant(name: str, seed: int = 0) -> BoardVariant:
     """One variant of :func:`board_variants`' corpus, by name."""
     if name not in _VARIANTS:
-        raise ValueError(f"no board variant {name!r}; the variants: {', '.join(_VARIANTS)}")
+        raise ArgumentError(f"no board variant {name!r}; the variants: {', '.join(_VARIANTS)}")
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ValueError(f"seed must be a non-negative whole number, got {seed!r}")
+        raise ArgumentError(f"seed must be a non-negative whole number, got {seed!r}")
     # Each variant draws from its own stream, so a subset renders as in the whole corpus.
     rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
     make, description = _VARIANTS[name]

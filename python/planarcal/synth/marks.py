@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal.calib.board import CircleGridBoard
-from planarcal.errors import BoardError
+from planarcal.errors import ArgumentError, BoardError
 from planarcal.synth.dots import _board_to_table, _dot_diameters
 from planarcal.synth.objects import SceneObject
 
@@ -76,9 +76,9 @@ def printed_marks(
     wanted = (kinds,) if isinstance(kinds, str) else tuple(kinds)
     for kind in wanted:
         if kind not in MARK_KINDS:
-            raise ValueError(f"kinds must be among {', '.join(MARK_KINDS)}; got {kind!r}")
+            raise ArgumentError(f"kinds must be among {', '.join(MARK_KINDS)}; got {kind!r}")
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ValueError(f"seed must be a non-negative whole number, got {seed!r}")
+        raise ArgumentError(f"seed must be a non-negative whole number, got {seed!r}")
     margin = arguments.real("paper_margin_mm", paper_margin_mm, BoardError)
     outside = {"numbers", "arrows", "text"} & set(wanted)
     if outside and margin <= 0.0:

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import arguments
+from planarcal.errors import ArgumentError
 from planarcal.synth.shapes import _Circle, _ConvexPolygon, _rotation_2d, _Shape, _signed_area
 
 F64 = NDArray[np.float64]
@@ -90,21 +91,21 @@ class SceneObject:
 
     def __post_init__(self) -> None:
         if self.kind not in OBJECT_KINDS:
-            raise ValueError(f"kind must be one of {', '.join(OBJECT_KINDS)}; got {self.kind!r}")
+            raise ArgumentError(f"kind must be one of {', '.join(OBJECT_KINDS)}; got {self.kind!r}")
         object.__setattr__(self, "position_mm", arguments.pair("position_mm", self.position_mm))
         arguments.real("angle_deg", self.angle_deg)
         arguments.positive("size_mm", self.size_mm)
         if self.length_mm is not None:
             if self.kind not in ("bolt", "rectangle"):
-                raise ValueError(f"length_mm applies to bolts and rectangles, not a {self.kind}")
+                raise ArgumentError(f"length_mm applies to bolts and rectangles, not a {self.kind}")
             arguments.positive("length_mm", self.length_mm)
         if self.grey is not None:
             g = arguments.real("grey", self.grey)
             if not 0.0 <= g <= 255.0:
-                raise ValueError(f"grey must be a grey level 0-255, got {self.grey!r}")
+                raise ArgumentError(f"grey must be a grey level 0-255, got {self.grey!r}")
         height = arguments.real("height_mm", self.height_mm)
         if height < 0.0:
-            raise ValueError(
+            raise ArgumentError(
                 f"height_mm must be >= 0 (mm above the table; 0 for a flat object), got "
                 f"{self.height_mm!r}"
             )
@@ -168,9 +169,9 @@ class SceneObject:
         """The outline as polygons in table mm (see :class:`Silhouette`); circles become
         regular polygons of ``arc_vertices`` vertices. The renderer draws true circles."""
         if isinstance(arc_vertices, bool) or not isinstance(arc_vertices, int | np.integer):
-            raise ValueError(f"arc_vertices must be a whole number, got {arc_vertices!r}")
+            raise ArgumentError(f"arc_vertices must be a whole number, got {arc_vertices!r}")
         if arc_vertices < 8:
-            raise ValueError(f"arc_vertices must be at least 8, got {arc_vertices}")
+            raise ArgumentError(f"arc_vertices must be at least 8, got {arc_vertices}")
         parts, holes, c = self._local()
         if self.kind == "bolt":
             head, shank = parts

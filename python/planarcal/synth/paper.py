@@ -13,7 +13,7 @@ import numpy as np
 
 from planarcal import arguments
 from planarcal.calib.board import CircleGridBoard
-from planarcal.errors import ImageError
+from planarcal.errors import ArgumentError, ImageError
 from planarcal.synth.camera import CameraModel, PlanePose
 from planarcal.synth.objects import SceneObject
 from planarcal.synth.render import RenderedScene, render_scene
@@ -124,7 +124,7 @@ def random_paper_scene(
     scale = arguments.positive("px_per_mm", px_per_mm)
     tilt = arguments.real("max_tilt_deg", max_tilt_deg)
     if not 0.0 <= tilt <= 60.0:
-        raise ValueError(f"max_tilt_deg must be 0 to 60, got {max_tilt_deg!r}")
+        raise ArgumentError(f"max_tilt_deg must be 0 to 60, got {max_tilt_deg!r}")
     board = PAPER_BOARD
     middle = np.array([board.cols - 1, board.rows - 1]) * board.pitch / 2.0
     pose = PlanePose(

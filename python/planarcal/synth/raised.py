@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal.errors import ArgumentError
 from planarcal.synth.shapes import (
     _Circle,
     _complement,
@@ -73,7 +74,7 @@ class _Raised:
         distance: float,
     ) -> None:
         if holes and len(parts) != 1:  # pragma: no cover - holes only in nuts and washers
-            raise ValueError("a raised object with holes must be one convex part")
+            raise ArgumentError("a raised object with holes must be one convex part")
         self.height, self.distance = float(height), float(distance)
         self.lam = self.height / self.distance
         self.foot = np.asarray(foot, dtype=np.float64)

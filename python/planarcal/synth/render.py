@@ -61,7 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal.calib.board import CircleGridBoard
-from planarcal.errors import BoardError, ImageError
+from planarcal.errors import ArgumentError, BoardError, ImageError
 from planarcal.synth.camera import CameraModel, PlanePose, View
 from planarcal.synth.dots import _board_to_table, _dot_diameters
 from planarcal.synth.effects import (
@@ -276,12 +276,12 @@ def render_scene(
     """
     camera = CameraModel() if camera is None else camera
     if not isinstance(camera, CameraModel):
-        raise ValueError(f"camera must be a CameraModel, got {type(camera).__name__}")
+        raise ArgumentError(f"camera must be a CameraModel, got {type(camera).__name__}")
     origin, angle, margin = _checked_board(board, board_origin_mm, board_angle_deg, paper_margin_mm)
     diameters = None if board is None else _dot_diameters(board, enlarged_dots)
     pose = _default_pose(board, origin, angle) if pose is None else pose
     if not isinstance(pose, PlanePose):
-        raise ValueError(f"pose must be a PlanePose, got {type(pose).__name__}")
+        raise ArgumentError(f"pose must be a PlanePose, got {type(pose).__name__}")
     objs, printed = _checked_layers(objects, marks)
     tones = _checked_tones(table_grey, paper_grey, ink_grey, metal_grey, side_grey)
     effects = _checked_image_effects(
@@ -375,13 +375,13 @@ def _checked_layers(
     objs = tuple(objects)
     for i, o in enumerate(objs):
         if not isinstance(o, SceneObject):
-            raise ValueError(f"objects[{i}] must be a SceneObject, got {type(o).__name__}")
+            raise ArgumentError(f"objects[{i}] must be a SceneObject, got {type(o).__name__}")
     printed = tuple(marks)
     for i, o in enumerate(printed):
         if not isinstance(o, SceneObject):
-            raise ValueError(f"marks[{i}] must be a SceneObject, got {type(o).__name__}")
+            raise ArgumentError(f"marks[{i}] must be a SceneObject, got {type(o).__name__}")
         if o.height_mm != 0.0:
-            raise ValueError(f"marks[{i}] must be flat (height_mm 0): marks are printed")
+            raise ArgumentError(f"marks[{i}] must be flat (height_mm 0): marks are printed")
     return objs, printed
 
 
@@ -428,7 +428,7 @@ def _check_below_camera(objects: Sequence[SceneObject], camera_centre: F64) -> N
     """ValueError for an object as high as the camera (or higher)."""
     for i, o in enumerate(objects):
         if o.height_mm >= -camera_centre[2]:
-            raise ValueError(
+            raise ArgumentError(
                 f"objects[{i}].height_mm ({o.height_mm!r}) reaches the camera, which is "
                 f"{-camera_centre[2]:.6g} mm above the table"
             )
@@ -572,7 +572,7 @@ def _radiance(
     yd = ((np.arange(h + 1, dtype=np.float64) - 0.5 - camera.cy) / f)[:, None]
     cx, cy, ok = camera._rays_to_plane(xd, yd, pose)
     if not ok.all():
-        raise ValueError(
+        raise ArgumentError(
             "the plane does not fill the view: part of the image sees above its horizon "
             f"(tilt {pose.tilt_deg} degrees is too steep for this camera and distance)"
         )

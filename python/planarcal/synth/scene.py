@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calib.board import CircleGridBoard
+from planarcal.errors import ArgumentError
 from planarcal.synth.dots import _Dots
 from planarcal.synth.objects import SceneObject
 from planarcal.synth.point_index import _PointIndex
@@ -65,7 +66,7 @@ class _Scene:
             self.objects.append((outer, holes))
             if o.height_mm > 0:
                 if camera_centre is None:  # pragma: no cover - render_scene passes it
-                    raise ValueError("a raised object needs the camera's position")
+                    raise ArgumentError("a raised object needs the camera's position")
                 foot, distance = camera_centre[:2], -float(camera_centre[2])
                 raised = _Raised(outer, holes, float(o.height_mm), foot, distance)
                 self.raised.append((i, raised))

@@ -7,6 +7,8 @@ import math
 import re
 from typing import Literal
 
+from planarcal.errors import ArgumentError
+
 Orientation = Literal["auto", "portrait", "landscape"]
 """How a page is turned; "auto": whichever fits with more room around the dots."""
 
@@ -45,9 +47,11 @@ def page_size(name: str) -> tuple[float, float]:
 
 
 def parse_page(name: str) -> tuple[str, tuple[float, float]]:
-    """(canonical label, (width, height) in mm) of a page name; ValueError if it is none."""
+    """(canonical label, (width, height) in mm) of a page name; ArgumentError if it is none."""
     if not isinstance(name, str):
-        raise ValueError(f"a page is a name like 'A4' or a size like '300x400' (mm), got {name!r}")
+        raise ArgumentError(
+            f"a page is a name like 'A4' or a size like '300x400' (mm), got {name!r}"
+        )
     key = name.strip().lower()
     for standard, size in PAGE_SIZES.items():
         if standard.lower() == key:
@@ -57,8 +61,8 @@ def parse_page(name: str) -> tuple[str, tuple[float, float]]:
         width, height = float(match.group(1)), float(match.group(2))
         if width > 0 and height > 0 and math.isfinite(width) and math.isfinite(height):
             return f"{num(width)}x{num(height)}", (width, height)
-        raise ValueError(f"a custom page must have a positive width and height, got {name!r}")
-    raise ValueError(
+        raise ArgumentError(f"a custom page must have a positive width and height, got {name!r}")
+    raise ArgumentError(
         f"unknown page {name!r}: use one of {', '.join(PAGE_SIZES)} (any case) "
         "or a custom size 'WxH' in mm, e.g. '300x400'"
     )

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planarcal.calib.board import CircleGridBoard
-from planarcal.errors import BoardError
+from planarcal.errors import ArgumentError, BoardError
 from planarcal.files import atomic_write
 from planarcal.report.printable.layout import CHECK_BAR_MM, fit, refusal
 from planarcal.report.printable.pages import Orientation, num, parse_page
@@ -106,32 +106,32 @@ def write_board(
     target = Path(os.fspath(path))
     suffix = target.suffix.lower()
     if suffix not in (".svg", ".pdf"):
-        raise ValueError(
+        raise ArgumentError(
             f"cannot tell the format of {str(target)!r} from its suffix "
             f"{target.suffix or '(none)'!r}: use .svg or .pdf"
         )
     fmt: Literal["svg", "pdf"] = "svg" if suffix == ".svg" else "pdf"
     if orientation not in ("auto", "portrait", "landscape"):
-        raise ValueError(
+        raise ArgumentError(
             f"orientation must be 'auto', 'portrait' or 'landscape', got {orientation!r}"
         )
     if isinstance(margin_mm, bool) or not isinstance(margin_mm, int | float | np.number):
-        raise ValueError(f"margin_mm must be a length in mm, got {margin_mm!r}")
+        raise ArgumentError(f"margin_mm must be a length in mm, got {margin_mm!r}")
     margin = float(margin_mm)
     if not (math.isfinite(margin) and margin >= 0):
-        raise ValueError(f"margin_mm must be a finite length >= 0 in mm, got {margin_mm!r}")
+        raise ArgumentError(f"margin_mm must be a finite length >= 0 in mm, got {margin_mm!r}")
     if isinstance(page, str):
         label, size = parse_page(page)
     else:
         try:
             pw, ph = (float(v) for v in page)
         except (TypeError, ValueError):
-            raise ValueError(
+            raise ArgumentError(
                 f"a page is a name like 'A4', a size like '300x400' or (width, height) in mm, "
                 f"got {page!r}"
             ) from None
         if not (pw > 0 and ph > 0 and math.isfinite(pw) and math.isfinite(ph)):
-            raise ValueError(f"a page must have a positive width and height, got {page!r}")
+            raise ArgumentError(f"a page must have a positive width and height, got {page!r}")
         label, size = f"{num(pw)}x{num(ph)}", (pw, ph)
 
     board.dots_mm()  # BoardError when the dots' size is unknown: it cannot be printed
