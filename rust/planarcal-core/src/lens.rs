@@ -236,6 +236,44 @@ impl RadialLens {
         dx.hypot(dy)
     }
 
+    /// Distorts every point of `src` into `out` (the same length).
+    pub fn distort_all(&self, src: &[Point], out: &mut [Point]) {
+        for (o, u) in out.iter_mut().zip(src) {
+            *o = self.distort(*u);
+        }
+    }
+
+    /// Undistorts every point of `src` into `out` (the same length): NaN where a point has
+    /// no ideal pixel (beyond the valid radius, or not finite). Returns how many have none
+    /// and the index of the first.
+    pub fn undistort_all(&self, src: &[Point], out: &mut [Point]) -> (usize, Option<usize>) {
+        let (mut failed, mut first) = (0, None);
+        for (i, (o, d)) in out.iter_mut().zip(src).enumerate() {
+            match self
+                .undistort(*d)
+                .filter(|u| u[0].is_finite() && u[1].is_finite())
+            {
+                Some(u) => *o = u,
+                None => {
+                    *o = [f64::NAN; 2];
+                    failed += 1;
+                    first.get_or_insert(i);
+                }
+            }
+        }
+        (failed, first)
+    }
+
+    /// The error for point `index`, `d`, which lies beyond the valid radius.
+    pub fn outside(&self, index: usize, d: Point) -> LensError {
+        LensError::OutsideModel {
+            index,
+            x: d[0],
+            y: d[1],
+            radius: self.valid_radius(),
+        }
+    }
+
     /// Distorted pixel -> ideal pixel, or None beyond the model's valid radius.
     #[inline]
     pub fn undistort(&self, d: Point) -> Option<Point> {
@@ -322,6 +360,26 @@ mod tests {
             );
         }
         assert!(lens(0.1, 0.05).fold_radius().is_infinite());
+    }
+
+    #[test]
+    fn batches_mark_the_points_without_an_ideal_pixel() {
+        let l = lens(-0.5, 0.0);
+        let far = [l.centre[0] + 1.01 * l.valid_radius(), l.centre[1]];
+        let src = [[500.0, 300.0], far, [f64::NAN, 1.0], [700.0, 400.0]];
+        let mut out = [[0.0; 2]; 4];
+        assert_eq!(l.undistort_all(&src, &mut out), (2, Some(1)));
+        assert!(out[1][0].is_nan() && out[2][0].is_nan());
+        let mut back = [[0.0; 2]; 4];
+        l.distort_all(&out, &mut back);
+        for i in [0, 3] {
+            assert!((back[i][0] - src[i][0]).abs() < 1e-9 && (back[i][1] - src[i][1]).abs() < 1e-9);
+        }
+        let identity = RadialLens::identity(1280.0, 720.0).unwrap(); // ok: test-only
+        assert_eq!(
+            identity.undistort_all(&src[2..], &mut out[..2]),
+            (1, Some(0))
+        );
     }
 
     #[test]

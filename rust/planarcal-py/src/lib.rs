@@ -7,6 +7,7 @@ mod convert;
 mod dot_centres;
 mod errors;
 mod estimate;
+mod lens;
 mod plane_model;
 mod reprojection;
 mod robust;
@@ -24,6 +25,7 @@ fn _after_fork_in_child() {
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<lens::RadialLens>()?;
     m.add_class::<plane_model::FittedPlane>()?;
     m.add_class::<tracking::Tracks>()?;
     m.add_class::<robust::RobustResult>()?;
