@@ -17,9 +17,12 @@ Conventions (those of all of :mod:`planarcal.synth`)
   gives the same pixels as :meth:`CameraModel.project` (which takes points above the table
   too: ``height_mm``).
 
-Going the other way, from a pixel to the table point it sees, is exact too: the position is
-undistorted by Newton's method on the radial polynomial (to machine precision), and the ray
-through it is intersected with the plane. The renderer traces every pixel so.
+The lens is the package's one radial lens, :class:`planarcal._core.RadialLens`, centred on
+the principal point with the focal length as its radius unit (which makes its k1, k2
+OpenCV's). Going the other way, from a pixel to the table point it sees, is exact too: the
+lens undistorts the position (Newton's method on the radial polynomial, to machine
+precision), and the ray through it is intersected with the plane. The renderer traces every
+pixel so.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
+from planarcal._core import RadialLens
 from planarcal.errors import ImageError
 
 F64 = NDArray[np.float64]
@@ -152,20 +156,18 @@ class CameraModel:
         if self.principal is not None:
             object.__setattr__(self, "principal", arguments.pair("principal", self.principal))
         k1, k2 = arguments.real("k1", self.k1), arguments.real("k2", self.k2)
-        if k1 or k2:
-            r_corner = self._corner_radius()
-            r = np.linspace(0.0, 5.0 * r_corner + 1.0, 200_001)
-            rr = r * r
-            slope = 1.0 + rr * (3.0 * k1 + 5.0 * k2 * rr)
-            distorted = r * (1.0 + rr * (k1 + k2 * rr))
-            reach = np.flatnonzero(distorted >= r_corner)
-            folds = np.flatnonzero(slope <= 0.0)
-            if reach.size == 0 or (folds.size and folds[0] <= reach[0]):
-                raise ValueError(
-                    f"distortion k1={k1}, k2={k2} folds over inside the image: the radial "
-                    "mapping stops increasing before the image corners, so pixels near them "
-                    "would see two places at once; use milder coefficients"
-                )
+        # The lens must invert over the image: its fold, seen in the image, beyond the corners.
+        if (k1 or k2) and not self.lens.valid_radius > self._corner_radius() * self.focal_px:
+            raise ValueError(
+                f"distortion k1={k1}, k2={k2} folds over inside the image: the radial "
+                "mapping stops increasing before the image corners, so pixels near them "
+                "would see two places at once; use milder coefficients"
+            )
+
+    @property
+    def lens(self) -> RadialLens:
+        """The lens in pixels: centred on the principal point, the focal length its unit."""
+        return RadialLens((self.cx, self.cy), float(self.focal_px), float(self.k1), float(self.k2))
 
     @property
     def cx(self) -> float:
@@ -194,37 +196,28 @@ class CameraModel:
     def distorted(self) -> bool:
         return bool(self.k1 or self.k2)
 
+    def _to_px(self, normalized: F64) -> F64:
+        return np.asarray(normalized * float(self.focal_px) + [self.cx, self.cy], np.float64)
+
+    def _to_normalized(self, px: F64) -> F64:
+        return np.asarray((px - [self.cx, self.cy]) / float(self.focal_px), np.float64)
+
     def distort(self, normalized: ArrayLike) -> F64:
         """Undistorted normalised coordinates (..., 2) to distorted ones."""
         p, shape = arguments.points("normalized", normalized)
-        r2 = np.sum(p * p, axis=1, keepdims=True)
-        out = p * (1.0 + r2 * (self.k1 + self.k2 * r2))
-        return np.asarray(out.reshape(*shape, 2), dtype=np.float64)
-
-    def _undistort_scale(self, rd2: F64) -> F64:
-        """s with r_u = s r_d for squared distorted radii rd2 (exact, Newton's method)."""
-        k1, k2 = float(self.k1), float(self.k2)
-        if not (k1 or k2):
-            return np.ones_like(rd2)
-        rd = np.sqrt(rd2)
-        r = rd.copy()
-        for _ in range(40):
-            rr = r * r
-            f = r * (1.0 + rr * (k1 + k2 * rr)) - rd
-            f /= 1.0 + rr * (3.0 * k1 + 5.0 * k2 * rr)
-            r -= f
-            if float(np.max(np.abs(f), initial=0.0)) <= 1e-15 * (1.0 + float(rd.max())):
-                break
-        else:  # pragma: no cover - the constructor rules out fold-over
-            raise ValueError("undistortion did not converge: distortion too strong here")
-        return np.asarray(np.divide(r, rd, out=np.ones_like(rd), where=rd > 0.0), np.float64)
+        if not self.distorted:
+            return p.reshape(*shape, 2)
+        out = self._to_normalized(self.lens.distort(self._to_px(p)))
+        return out.reshape(*shape, 2)
 
     def undistort(self, normalized: ArrayLike) -> F64:
         """Distorted normalised coordinates (..., 2) to undistorted ones (exact inverse of
         :meth:`distort` within the image's radius)."""
         p, shape = arguments.points("normalized", normalized)
-        s = self._undistort_scale(np.sum(p * p, axis=1))
-        return (p * s[:, None]).reshape(*shape, 2)
+        if not self.distorted:
+            return p.reshape(*shape, 2)
+        out = self._to_normalized(self.lens.undistort(self._to_px(p)))
+        return out.reshape(*shape, 2)
 
     def homography(self, pose: PlanePose) -> F64:
         """The table (mm) -> image (px) homography K [r1 r2 t], scaled so H[2, 2] = 1 (-1 if
@@ -261,11 +254,9 @@ class CameraModel:
             raise ValueError(
                 f"world point {i} {p[i].tolist()}{where} is behind the camera: it has no image"
             )
-        xy = cam[:, :2] / cam[:, 2:]
+        px = self._to_px(cam[:, :2] / cam[:, 2:])
         if self.distorted:
-            r2 = np.sum(xy * xy, axis=1, keepdims=True)
-            xy = xy * (1.0 + r2 * (self.k1 + self.k2 * r2))
-        px = xy * float(self.focal_px) + np.array([self.cx, self.cy])
+            px = self.lens.distort(px)
         return np.asarray(px.reshape(*shape, 2), dtype=np.float64)
 
     def image_to_plane(self, pixels: ArrayLike, pose: PlanePose) -> F64:
@@ -285,8 +276,13 @@ class CameraModel:
     ) -> tuple[F64, F64, NDArray[np.bool_]]:
         """Distorted normalised coordinates (any matching shapes) to table X, Y, and whether
         the ray hits the plane in front of the camera."""
-        s = self._undistort_scale(xd * xd + yd * yd)
-        xu, yu = xd * s, yd * s
+        xu, yu = xd, yd
+        if self.distorted:
+            f = float(self.focal_px)
+            xd, yd = np.broadcast_arrays(xd, yd)
+            px = np.stack([xd * f + self.cx, yd * f + self.cy], axis=-1)
+            ideal = self.lens.undistort(px.reshape(-1, 2)).reshape(px.shape)
+            xu, yu = (ideal[..., 0] - self.cx) / f, (ideal[..., 1] - self.cy) / f
         r = pose.rotation()
         minv = np.linalg.inv(np.column_stack([r[:, 0], r[:, 1], pose.translation()]))
         w = minv[2, 0] * xu + minv[2, 1] * yu + minv[2, 2]

@@ -9,6 +9,7 @@
 //! reaches zero); `undistort` refuses points beyond it instead of returning a wrong value.
 
 use crate::error::HomographyError;
+use crate::transform::{map_indexed, PointStatus};
 use crate::Point;
 
 /// Newton's method on the radial equation converges to rounding in a handful of steps for
@@ -236,32 +237,26 @@ impl RadialLens {
         dx.hypot(dy)
     }
 
-    /// Distorts every point of `src` into `out` (the same length).
+    /// Distorts every point of `src` into `out` (the same length), in parallel chunks for
+    /// large batches.
     pub fn distort_all(&self, src: &[Point], out: &mut [Point]) {
-        for (o, u) in out.iter_mut().zip(src) {
-            *o = self.distort(*u);
-        }
+        let n = src.len().min(out.len());
+        map_indexed(&mut out[..n], [f64::NAN; 2], |i| Ok(self.distort(src[i])));
     }
 
-    /// Undistorts every point of `src` into `out` (the same length): NaN where a point has
-    /// no ideal pixel (beyond the valid radius, or not finite). Returns how many have none
-    /// and the index of the first.
+    /// Undistorts every point of `src` into `out` (the same length), in parallel chunks for
+    /// large batches: NaN where a point has no ideal pixel (beyond the valid radius, or not
+    /// finite). Returns how many have none and the index of the first.
     pub fn undistort_all(&self, src: &[Point], out: &mut [Point]) -> (usize, Option<usize>) {
-        let (mut failed, mut first) = (0, None);
-        for (i, (o, d)) in out.iter_mut().zip(src).enumerate() {
-            match self
-                .undistort(*d)
+        let n = src.len().min(out.len());
+        let fold = self.fold_radius();
+        let report = map_indexed(&mut out[..n], [f64::NAN; 2], |i| {
+            self.undistort_within(src[i], fold)
                 .filter(|u| u[0].is_finite() && u[1].is_finite())
-            {
-                Some(u) => *o = u,
-                None => {
-                    *o = [f64::NAN; 2];
-                    failed += 1;
-                    first.get_or_insert(i);
-                }
-            }
-        }
-        (failed, first)
+                // The report's kind goes unused: only the count and the first index do.
+                .ok_or(PointStatus::NonFinite)
+        });
+        (report.invalid(), report.first.map(|(i, _)| i))
     }
 
     /// The error for point `index`, `d`, which lies beyond the valid radius.
@@ -277,6 +272,12 @@ impl RadialLens {
     /// Distorted pixel -> ideal pixel, or None beyond the model's valid radius.
     #[inline]
     pub fn undistort(&self, d: Point) -> Option<Point> {
+        self.undistort_within(d, self.fold_radius())
+    }
+
+    /// `undistort`, given the lens's `fold_radius` (computed once for a batch).
+    #[inline]
+    fn undistort_within(&self, d: Point, fold: f64) -> Option<Point> {
         if self.is_identity() {
             return Some(d);
         }
@@ -286,7 +287,6 @@ impl RadialLens {
         if rd == 0.0 {
             return Some(d);
         }
-        let fold = self.fold_radius();
         let g = |r: f64| r * self.factor(r * r).0;
         if fold.is_finite() && rd >= g(fold) {
             return None;
