@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal._core import RadialLens
 from planarcal.arguments import F64
 from planarcal.calib.calibration import Calibration, LensModel
 from planarcal.errors import HomographyError, IntrinsicsError, LensModelError
@@ -87,28 +88,15 @@ def _normalised_radius(intrinsics: CameraIntrinsics, ideal_px: F64) -> F64:
     return np.asarray(np.hypot(rays[:, 0], rays[:, 1]) / rays[:, 2], dtype=np.float64)
 
 
-def _fold_radius(lens: LensModel) -> float:
-    """The normalised radius where the radial map r (1 + k1 r^2 + k2 r^4) stops increasing
-    (beyond it the lens model folds over and cannot be inverted), or infinity."""
-    # d/dr = 1 + 3 k1 r^2 + 5 k2 r^4: its smallest positive root in r^2.
-    a, b = 5.0 * lens.k2, 3.0 * lens.k1
-    if a == 0.0:
-        roots = [-1.0 / b] if b < 0.0 else []
-    else:
-        disc = b * b - 4.0 * a
-        roots = (
-            []
-            if disc < 0.0
-            else [(-b - math.sqrt(disc)) / (2 * a), (-b + math.sqrt(disc)) / (2 * a)]
-        )
-    positive = [t for t in roots if t > 0.0]
-    return math.sqrt(min(positive)) if positive else math.inf
+def _radial(lens: LensModel) -> RadialLens:
+    """The calibration's lens as the core's radial lens (its fold and valid radius)."""
+    return RadialLens(lens.centre_px, lens.scale_px, lens.k1, lens.k2)
 
 
 def _before_fold(lens: LensModel, ideal_px: F64) -> NDArray[np.bool_]:
     """Which ideal pixels lie inside the lens model's fold (where it is one to one)."""
     rho = np.hypot(*((ideal_px - np.array(lens.centre_px)) / lens.scale_px).T)
-    return np.asarray(rho < (1.0 - 1e-6) * _fold_radius(lens), dtype=np.bool_)
+    return np.asarray(rho < (1.0 - 1e-6) * _radial(lens).fold_radius, dtype=np.bool_)
 
 
 def mappable(cal: Calibration, px: F64) -> NDArray[np.bool_]:
@@ -117,9 +105,8 @@ def mappable(cal: Calibration, px: F64) -> NDArray[np.bool_]:
     ok = np.asarray(np.isfinite(px).all(axis=1), dtype=np.bool_)
     lens = cal.lens
     if lens is not None:
-        fold = _fold_radius(lens)
-        if math.isfinite(fold):
-            valid = lens.scale_px * fold * (1.0 + fold**2 * (lens.k1 + lens.k2 * fold**2))
+        valid = _radial(lens).valid_radius
+        if math.isfinite(valid):
             ok &= np.hypot(*(px - np.array(lens.centre_px)).T) < (1.0 - 1e-6) * valid
     elif cal.intrinsics is not None:
         fold = _intrinsics_fold(cal.intrinsics)
