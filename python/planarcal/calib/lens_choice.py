@@ -1,0 +1,178 @@
+"""Which lens model a calibration fits: the policy behind ``lens=`` ("auto" fits each model
+and keeps the simplest whose leave-one-out error no richer one clearly beats; a board that
+covers too little of the image gets none), the candidates it tried and its verdicts, and the
+cases where no lens model is fitted at all (intrinsics, the paper's estimator, no image size)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal import _core
+from planarcal.calib.json_number import json_number
+from planarcal.calib.lens_model import LENS_MODELS
+from planarcal.calib.plane_fit import PlaneFit, fit_homography_alone
+from planarcal.camera import CameraIntrinsics
+from planarcal.errors import HomographyError, LensModelError
+from planarcal.homography import Solver
+
+F64 = NDArray[np.float64]
+
+LensChoice = Literal["auto", "none", "k1", "k1k2", "k1k2c"]
+
+# A richer lens model must lower the mean leave-one-out error by this fraction to be chosen.
+LENS_MARGIN = 0.01
+# The board must reach this fraction of the way from the image centre to its corners for the
+# distortion to be determined at all (a small central board sees almost none of it).
+MIN_LENS_COVERAGE = 0.35
+# A fitted distortion centre farther than this (in half-diagonals) from the image centre is
+# not a lens's: the model is fitting something else (a board that is not flat).
+MAX_CENTRE_OFFSET = 0.2
+
+
+@dataclasses.dataclass(frozen=True)
+class LensCandidate:
+    """One lens model tried by ``lens="auto"`` and what its leave-one-out error said."""
+
+    model: str
+    loo_mean_px: float
+    """Mean leave-one-out error in the image, px (NaN if the model could not be fitted)."""
+    sigma_px: float
+    """Residual standard deviation per coordinate, px."""
+    verdict: str
+    """"chosen", "not earned" (no clear gain over a simpler model) or why it was refused."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: json_number(v) for k, v in dataclasses.asdict(self).items()}
+
+
+def _coverage(image: F64, size: tuple[int, int]) -> float:
+    """How far the points reach from the image centre towards its corners (0 to 1)."""
+    w, h = size
+    centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    return float(np.hypot(*(image - centre).T).max() / (0.5 * math.hypot(w, h)))
+
+
+def fit_with_lens(
+    world: F64,
+    image: F64,
+    solver: Solver,
+    refine: bool,
+    lens: str,
+    size: tuple[int, int] | None,
+    intrinsics: CameraIntrinsics | None,
+) -> PlaneFit:
+    """The fit ``lens=`` asks for: the intrinsics' undistortion, no lens model (asked for,
+    the paper's estimator, or nothing to centre one on), a forced model, or the choice."""
+    paper = solver != "normalized_dlt" or not refine
+    if intrinsics is not None:
+        if lens not in ("auto", "none"):
+            raise LensModelError(
+                f"with intrinsics the lens is the camera model's: lens must be 'auto' or "
+                f"'none', got {lens!r}"
+            )
+        ideal = intrinsics.undistort_points(image)
+        plane, h = fit_homography_alone(world, ideal, solver, refine, size)
+        return PlaneFit(plane, h, "intrinsics", [], "points undistorted by the camera's intrinsics")
+    if paper and lens not in ("auto", "none"):
+        raise LensModelError(
+            f"a lens model is fitted jointly with H by Levenberg-Marquardt; solver={solver!r}, "
+            f"refine={refine} fit a homography alone (keep the defaults to use lens={lens!r})"
+        )
+    if lens == "none" or paper:
+        plane, h = fit_homography_alone(world, image, solver, refine, size)
+        why = "the paper's estimator" if paper else "asked for"
+        return PlaneFit(plane, h, "none", [], f"no lens model ({why})")
+    if size is None:
+        if lens != "auto":
+            raise LensModelError(
+                "a lens model is centred on the image: give image_size=(width, height)"
+            )
+        plane, h = fit_homography_alone(world, image, solver, refine, size)
+        return PlaneFit(plane, h, "none", [], "no lens model (no image size to centre one on)")
+    coverage = _coverage(image, size)
+    if lens != "auto":
+        plane = _core.FittedPlane.fit(world, image, lens, (float(size[0]), float(size[1])))
+        note = f"lens model {lens} (asked for)"
+        if coverage < MIN_LENS_COVERAGE:
+            note += (
+                f"; the board reaches only {coverage:.0%} of the way to the image's corners, "
+                "too little to determine the distortion"
+            )
+        return PlaneFit(plane, plane.homography, lens, [], note)
+    if coverage < MIN_LENS_COVERAGE:
+        plane, h = fit_homography_alone(world, image, solver, refine, size)
+        return PlaneFit(
+            plane,
+            h,
+            "none",
+            [],
+            f"no lens model: the board reaches only {coverage:.0%} of the way from the image "
+            f"centre to its corners (at least {MIN_LENS_COVERAGE:.0%} needed), too little to "
+            "determine the distortion; let the board fill more of the view",
+        )
+    return _select_lens(world, image, solver, refine, size)
+
+
+def _select_lens(
+    world: F64, image: F64, solver: Solver, refine: bool, size: tuple[int, int]
+) -> PlaneFit:
+    """Fits every lens model and keeps the simplest whose leave-one-out error no richer one
+    beats by LENS_MARGIN."""
+    frame = (float(size[0]), float(size[1]))
+    centre = np.array([(size[0] - 1) / 2.0, (size[1] - 1) / 2.0])
+    half_diagonal = 0.5 * math.hypot(*size)
+    tried: dict[str, tuple[Any, float, float, str]] = {}
+    caches: dict[str, tuple[F64, F64]] = {}
+    for model in LENS_MODELS:
+        try:
+            plane = _core.FittedPlane.fit(world, image, model, frame)
+        except (LensModelError, HomographyError) as e:
+            if model == "none":
+                raise
+            tried[model] = (None, math.nan, math.nan, f"refused: {e}")
+            continue
+        offset = float(np.hypot(*(np.array(plane.lens[:2]) - centre)))
+        if model == "k1k2c" and offset > MAX_CENTRE_OFFSET * half_diagonal:
+            tried[model] = (
+                None,
+                math.nan,
+                plane.sigma,
+                f"refused: its centre ({plane.lens[0]:.0f}, {plane.lens[1]:.0f}) px is "
+                f"{offset:.0f} px from the image centre, not a lens's (is the board flat?)",
+            )
+            continue
+        px, mm = plane.leave_one_out()
+        err = np.hypot(*(px - image).T)
+        err = err[np.isfinite(err)]
+        loo = float(err.mean()) if err.size else math.nan
+        tried[model] = (plane, loo, plane.sigma, "")
+        caches[model] = (px, mm)
+    best = "none"
+    for model in LENS_MODELS[1:]:
+        plane, loo, _, why = tried[model]
+        if plane is not None and loo < tried[best][1] * (1.0 - LENS_MARGIN):
+            best = model
+    candidates = []
+    for model in LENS_MODELS:
+        plane, loo, sigma, why = tried[model]
+        verdict = why or ("chosen" if model == best else "not earned")
+        candidates.append(LensCandidate(model, loo, sigma, verdict))
+    gain = tried["none"][1]
+    if best == "none":
+        plane, h = fit_homography_alone(world, image, solver, refine, size)
+        note = (
+            "no lens model: none lowered the leave-one-out error by "
+            f"{LENS_MARGIN:.0%} or more ({gain:.3f} px without one)"
+        )
+        return PlaneFit(plane, h, "none", candidates, note)
+    chosen = tried[best]
+    note = (
+        f"lens model {best}: leave-one-out error {chosen[1]:.3f} px, against {gain:.3f} px "
+        "with a homography alone"
+    )
+    return PlaneFit(chosen[0], chosen[0].homography, best, candidates, note, caches[best])

@@ -1,0 +1,100 @@
+"""What a calibration fitted: the core's model of the plane (``_core.FittedPlane``: H, the lens,
+their covariance) with the lens model's name and how it was chosen, and the ways to build the
+core's model, by fitting a homography alone or at parameters already known."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal import _core
+from planarcal.calib.lens_model import LENS_MODELS, LensModel
+from planarcal.camera import CameraIntrinsics
+from planarcal.errors import IntrinsicsError, LensModelError
+from planarcal.homography import Solver, estimate_homography
+
+if TYPE_CHECKING:
+    # Only a type here: lens_choice builds PlaneFits, so it imports this module.
+    from planarcal.calib.lens_choice import LensCandidate
+
+F64 = NDArray[np.float64]
+
+
+@dataclasses.dataclass
+class PlaneFit:
+    """What a calibration fitted: the core's model (on ideal pixels with intrinsics), its H,
+    which lens model, and how it was chosen."""
+
+    plane: _core.FittedPlane
+    h: F64
+    lens: str
+    candidates: list[LensCandidate]
+    note: str
+    loo_cache: tuple[F64, F64] | None = None
+
+    def lens_model(self) -> LensModel | None:
+        if self.lens not in LENS_MODELS[1:]:
+            return None
+        cx, cy, scale, k1, k2 = self.plane.lens
+        s1, s2, scx, scy = self.plane.lens_std
+        return LensModel(self.lens, (cx, cy), scale, k1, k2, s1, s2, (scx, scy))
+
+    def loo(self) -> tuple[F64, F64]:
+        if self.loo_cache is None:
+            self.loo_cache = self.plane.leave_one_out()
+        return self.loo_cache
+
+
+def _frame_size(image: F64, size: tuple[int, int] | None) -> tuple[float, float]:
+    """The image size that centres the lens frame; without one (a plain homography, where it
+    only sets the parameters' units), a box around the points."""
+    if size is not None:
+        return float(size[0]), float(size[1])
+    reach = np.abs(image).max(axis=0) if len(image) else np.ones(2)
+    return float(2.0 * reach[0] + 2.0), float(2.0 * reach[1] + 2.0)
+
+
+def fit_homography_alone(
+    world: F64, image: F64, solver: Solver, refine: bool, size: Any
+) -> tuple[Any, F64]:
+    """The homography by the chosen solver, and the core's model at it (for the covariance)."""
+    h = estimate_homography(world, image, solver, refine)
+    return homography_alone_at(h, world, image, size), h
+
+
+def homography_alone_at(h: F64, world: F64, image: F64, size: Any) -> Any:
+    """The core's model of a homography alone, at H (its covariance on these points)."""
+    w, hgt = _frame_size(image, size)
+    centre = ((w - 1.0) / 2.0, (hgt - 1.0) / 2.0)
+    return _core.FittedPlane.at(
+        h, centre, 0.5 * math.hypot(w, hgt), 0.0, 0.0, world, image, "none", (w, hgt)
+    )
+
+
+def plane_at(
+    h: F64,
+    world: F64,
+    image: F64,
+    size: tuple[int, int] | None,
+    lens: str,
+    lens_params: tuple[float, float, float, float, float],
+    intrinsics: CameraIntrinsics | None,
+) -> Any:
+    """The core's model of a calibration at known parameters (its covariance on these
+    points): H, the lens model `lens` with its (centre x, centre y, scale, k1, k2), or the
+    intrinsics."""
+    if lens == "intrinsics":
+        if intrinsics is None:
+            raise IntrinsicsError("lens model 'intrinsics' without the intrinsics")
+        return homography_alone_at(h, world, intrinsics.undistort_points(image), size)
+    if lens == "none":
+        return homography_alone_at(h, world, image, size)
+    if size is None:
+        raise LensModelError(f"lens model {lens!r} without the image size it is centred on")
+    cx, cy, scale, k1, k2 = lens_params
+    frame = (float(size[0]), float(size[1]))
+    return _core.FittedPlane.at(h, (cx, cy), scale, k1, k2, world, image, lens, frame)
