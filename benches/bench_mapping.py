@@ -106,7 +106,7 @@ def exact_mapping(plane: FittedPlane) -> Callable[[F64], F64]:
     h_inv = np.linalg.inv(plane.homography)
 
     def undistort_then_map(px: F64) -> F64:
-        v = np.c_[plane.undistort(px), np.ones(len(px))] @ h_inv.T
+        v = np.c_[plane.lens.undistort(px, invalid="nan"), np.ones(len(px))] @ h_inv.T
         return np.asarray(v[:, :2] / v[:, 2:], dtype=np.float64)
 
     return undistort_then_map
@@ -115,7 +115,7 @@ def exact_mapping(plane: FittedPlane) -> Callable[[F64], F64]:
 def opencv_mapping(plane: FittedPlane) -> Callable[[F64], F64]:
     """The same mapping by OpenCV, on (N, 1, 2) float64 pixels."""
     h_inv = np.linalg.inv(plane.homography)
-    cx, cy, s, k1, k2 = plane.lens
+    (cx, cy), s, k1, k2 = plane.lens.centre_px, plane.lens.scale_px, plane.lens.k1, plane.lens.k2
     if k1 == 0.0 and k2 == 0.0:
         return lambda px: cv2.perspectiveTransform(px, h_inv)
     camera = np.array([[s, 0.0, cx], [0.0, s, cy], [0.0, 0.0, 1.0]])

@@ -10,7 +10,8 @@ import pickle
 import numpy as np
 import pytest
 
-from planarcal._core import RadialLens
+from planarcal._core import FittedPlane, LensStd, RadialLens
+from planarcal.calib.lens_model import LensKind
 from planarcal.errors import ArgumentError, LensModelError
 
 CENTRE = (644.0, 355.0)
@@ -107,3 +108,24 @@ def test_the_class_is_frozen_compares_by_value_and_pickles() -> None:
     assert lens == RadialLens(CENTRE, SCALE, -0.26, 0.14) != RadialLens(CENTRE, SCALE, -0.26)
     assert pickle.loads(pickle.dumps(lens)) == lens
     assert repr(lens) == "RadialLens(centre_px=(644.0, 355.0), scale_px=734.0, k1=-0.26, k2=0.14)"
+
+
+def test_a_fitted_plane_hands_its_lens_and_uncertainty_over_as_classes() -> None:
+    frame = RadialLens.identity(1288, 710)  # "k1" keeps the image's centre and unit
+    truth = RadialLens(frame.centre_px, frame.scale_px, -0.1)
+    world = np.array([[x, y] for x in range(0, 260, 20) for y in range(0, 180, 20)], float)
+    ideal = world * 4.0 + [110.0, 20.0]
+    plane = FittedPlane.fit(world, truth.distort(ideal), LensKind.K1, (1288.0, 710.0))
+    lens, std = plane.lens, plane.lens_std
+    assert isinstance(lens, RadialLens) and isinstance(std, LensStd)
+    assert lens.k1 == pytest.approx(-0.1, abs=1e-9) and lens.k2 == 0.0
+    # k2 and the centre are held fixed with "k1": no uncertainty.
+    assert std.k2 == 0.0 and std.centre_px == (0.0, 0.0) and std.k1 >= 0.0
+    # A plane at those parameters reproduces the fit.
+    again = FittedPlane.at(
+        plane.homography, lens, world, truth.distort(ideal), LensKind.K1, (1288.0, 710.0)
+    )
+    assert again.lens == lens
+    assert pickle.loads(pickle.dumps(std)) == std
+    with pytest.raises(AttributeError):
+        std.k1 = 1.0  # type: ignore[misc]

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from planarcal._core import FittedPlane
+from planarcal._core import FittedPlane, RadialLens
 from planarcal.calib.calibration import Calibration
+from planarcal.calib.lens_model import LensKind
 from planarcal.errors import ArgumentError, LensModelError, PointAtInfinityError
 
 SIZE = (1280.0, 720.0)
@@ -68,7 +69,8 @@ def _horizon_inputs() -> tuple[F64, F64, F64, F64]:
 
 def _at(h: F64, lens: F64, world: F64, image: F64) -> FittedPlane:
     cx, cy, scale, k1, k2 = (float(v) for v in lens)
-    return FittedPlane.at(h, (cx, cy), scale, k1, k2, world, image, "k1", SIZE)
+    radial = RadialLens((cx, cy), scale, k1, k2)
+    return FittedPlane.at(h, radial, world, image, LensKind.K1, SIZE)
 
 
 @pytest.fixture(scope="module")
@@ -78,9 +80,13 @@ def planes() -> dict[str, FittedPlane]:
     world = _grid()
     horizon = _at(*_horizon_inputs())
     return {
-        "none": FittedPlane.fit(world, _noisy(_project(H, world)), "none", SIZE),
-        "k1": FittedPlane.fit(world, _noisy(_distort(_project(H, world), -0.06)), "k1", SIZE),
-        "k1k2c": FittedPlane.fit(world, _noisy(_distort(_project(H, world), -0.08)), "k1k2c", SIZE),
+        "none": FittedPlane.fit(world, _noisy(_project(H, world)), LensKind.NONE, SIZE),
+        "k1": FittedPlane.fit(
+            world, _noisy(_distort(_project(H, world), -0.06)), LensKind.K1, SIZE
+        ),
+        "k1k2c": FittedPlane.fit(
+            world, _noisy(_distort(_project(H, world), -0.08)), LensKind.K1K2C, SIZE
+        ),
         "horizon": horizon,
     }
 
@@ -106,11 +112,11 @@ def _odd_pixels() -> F64:
 
 
 def _reference(plane: FittedPlane, px: F64) -> F64:
-    """The mapping written out: the lens's Newton inverse (FittedPlane.undistort), refused 5 %
+    """The mapping written out: the lens's Newton inverse (RadialLens.undistort), refused 5 %
     beyond the image's farthest corner from the lens centre, then H^-1; NaN where refused or
     at or beyond the horizon."""
-    cx, cy, _, k1, k2 = plane.lens
-    ideal = plane.undistort(px)
+    (cx, cy), k1, k2 = plane.lens.centre_px, plane.lens.k1, plane.lens.k2
+    ideal = plane.lens.undistort(px, invalid="nan")
     if k1 != 0.0 or k2 != 0.0:
         reach = np.hypot(max(cx + 0.5, SIZE[0] - 0.5 - cx), max(cy + 0.5, SIZE[1] - 0.5 - cy))
         with np.errstate(invalid="ignore"):
@@ -218,7 +224,7 @@ def test_the_uncertainty_needs_noise_it_can_use_and_spare_points(
             plane.world_covariance([[600.0, 300.0]], bad)
     # Four points determine a homography exactly: no residuals to estimate the noise from.
     world = _grid()[[0, 13, 126, 139]]
-    exact = FittedPlane.fit(world, _project(H, world), "none", SIZE)
+    exact = FittedPlane.fit(world, _project(H, world), LensKind.NONE, SIZE)
     assert exact.dof == 0
     with pytest.raises(LensModelError, match="degrees of freedom"):
         exact.image_to_world_std([[600.0, 300.0]])
@@ -270,10 +276,11 @@ _CHILD = textwrap.dedent(
     """
     import sys
     import numpy as np
-    from planarcal._core import FittedPlane
+    from planarcal._core import FittedPlane, RadialLens
     h, lens, world, image, px = (np.load(name) for name in sys.argv[1:6])
     cx, cy, scale, k1, k2 = (float(v) for v in lens)
-    plane = FittedPlane.at(h, (cx, cy), scale, k1, k2, world, image, "k1", (1280.0, 720.0))
+    radial = RadialLens((cx, cy), scale, k1, k2)
+    plane = FittedPlane.at(h, radial, world, image, "k1", (1280.0, 720.0))
     np.save(sys.argv[6], plane.image_to_world(px, invalid="nan"))
     """
 )

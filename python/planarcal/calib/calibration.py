@@ -423,7 +423,7 @@ class Calibration:
         arr = _points(points_px, "points_px")
         if self.intrinsics is not None:
             return self.intrinsics.undistort_points(arr)
-        out = self._fit.plane.undistort(arr)
+        out = self._fit.plane.lens.undistort(arr, invalid="nan")
         if not np.isfinite(out).all():
             k = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
             raise LensModelError(
@@ -521,7 +521,7 @@ class Calibration:
             return self.intrinsics.distort_points(ideal)
         if self._fit.lens == "none":
             return ideal
-        return self._fit.plane.distort(ideal)
+        return self._fit.plane.lens.distort(ideal)
 
     @functools.cached_property
     def camera_pose(self) -> Any:

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core
+from planarcal._core import RadialLens
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.json_number import json_number
 from planarcal.calib.lens_choice import LensCandidate
@@ -197,7 +198,7 @@ def _fit_from_dict(
     except (KeyError, TypeError, ValueError, IndexError) as e:
         raise CalibrationFileError(f"{source}: bad world_scale or lens_candidates: {e!r}") from None
     intrinsics = None
-    params = (0.0, 0.0, 1.0, 0.0, 0.0)  # unused without a lens model
+    radial = None  # a lens model's own
     try:
         if lens == "intrinsics":
             intrinsics = CameraIntrinsics.from_dict(intr_data)
@@ -207,16 +208,15 @@ def _fit_from_dict(
                     f"{source}: lens model {lens!r} without its parameters or the image size"
                 )
             cx, cy = (float(v) for v in lens_data["centre_px"])
-            params = (
-                cx,
-                cy,
+            radial = RadialLens(
+                (cx, cy),
                 float(lens_data["scale_px"]),
                 float(lens_data["k1"]),
                 float(lens_data["k2"]),
             )
         elif lens != "none":
             raise CalibrationFileError(f"{source}: unknown lens model {lens!r}")
-        plane = plane_at(h, world, image, size, str(lens), params, intrinsics)
+        plane = plane_at(h, world, image, size, str(lens), radial, intrinsics)
     except (ArgumentError, IntrinsicsError, LensModelError, HomographyError) as e:
         raise CalibrationFileError(f"{source}: {e}") from None
     except (KeyError, TypeError, ValueError) as e:

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal._core import RadialLens
 from planarcal.calib.plane_fit import PlaneFit, plane_at
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import ArgumentError
@@ -117,8 +118,10 @@ def scaled_fit(
     are already scaled; the lens's centre and unit and the candidates' pixel errors follow."""
     s = size[0] / made_on[0]
     lens = fit.plane.lens
-    centre = affine(pixel_scaling(s), np.array([lens[:2]]))[0]
-    scaled_lens = (float(centre[0]), float(centre[1]), s * lens[2], lens[3], lens[4])
+    centre = affine(pixel_scaling(s), np.array([lens.centre_px]))[0]
+    scaled_lens = RadialLens(
+        (float(centre[0]), float(centre[1])), s * lens.scale_px, lens.k1, lens.k2
+    )
     plane = plane_at(h, world, image, size, fit.lens, scaled_lens, intrinsics)
     candidates = [
         dataclasses.replace(c, loo_mean_px=s * c.loo_mean_px, sigma_px=s * c.sigma_px)

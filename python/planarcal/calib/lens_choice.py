@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal.calib.json_number import json_number
-from planarcal.calib.lens_model import LENS_MODELS
+from planarcal.calib.lens_model import LENS_MODELS, LensKind
 from planarcal.calib.plane_fit import PlaneFit, fit_homography_alone
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import HomographyError, LensModelError
@@ -96,7 +96,9 @@ def fit_with_lens(
         return PlaneFit(plane, h, "none", [], "no lens model (no image size to centre one on)")
     coverage = _coverage(image, size)
     if lens != "auto":
-        plane = _core.FittedPlane.fit(world, image, lens, (float(size[0]), float(size[1])))
+        plane = _core.FittedPlane.fit(
+            world, image, LensKind(lens), (float(size[0]), float(size[1]))
+        )
         note = f"lens model {lens} (asked for)"
         if coverage < MIN_LENS_COVERAGE:
             note += (
@@ -130,19 +132,20 @@ def _select_lens(
     caches: dict[str, tuple[F64, F64]] = {}
     for model in LENS_MODELS:
         try:
-            plane = _core.FittedPlane.fit(world, image, model, frame)
+            plane = _core.FittedPlane.fit(world, image, LensKind(model), frame)
         except (LensModelError, HomographyError) as e:
             if model == "none":
                 raise
             tried[model] = (None, math.nan, math.nan, f"refused: {e}")
             continue
-        offset = float(np.hypot(*(np.array(plane.lens[:2]) - centre)))
+        offset = float(np.hypot(*(np.array(plane.lens.centre_px) - centre)))
         if model == "k1k2c" and offset > MAX_CENTRE_OFFSET * half_diagonal:
             tried[model] = (
                 None,
                 math.nan,
                 plane.sigma,
-                f"refused: its centre ({plane.lens[0]:.0f}, {plane.lens[1]:.0f}) px is "
+                f"refused: its centre ({plane.lens.centre_px[0]:.0f}, "
+                f"{plane.lens.centre_px[1]:.0f}) px is "
                 f"{offset:.0f} px from the image centre, not a lens's (is the board flat?)",
             )
             continue

@@ -1,17 +1,33 @@
-"""The lens as a calibration sees it: which radial-distortion models there are, and the one a
-calibration fitted (its centre, unit, k1, k2 and their standard errors)."""
+"""The lens as a calibration sees it: which radial-distortion models there are (LensKind), and
+the one a calibration fitted (its centre, unit, k1, k2 and their standard errors). The lens
+itself, its distortion and inverse, is the core's RadialLens."""
 
 from __future__ import annotations
 
 import dataclasses
+import enum
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planarcal._core import RadialLens
+
 F64 = NDArray[np.float64]
 
-LENS_MODELS = ("none", "k1", "k1k2", "k1k2c")
+
+class LensKind(str, enum.Enum):
+    """A lens model by name: which of the radial lens's parameters are fitted. It is a str,
+    so the core takes it by its name, the name files store."""
+
+    NONE = "none"
+    K1 = "k1"
+    K1K2 = "k1k2"
+    K1K2C = "k1k2c"
+
+
+# Plain strings (not the members), so that messages and files show "k1", not LensKind.K1.
+LENS_MODELS = tuple(kind.value for kind in LensKind)
 """The lens models, simplest first: none (a homography alone), k1, k1 + k2, and k1 + k2 with
 the distortion centre fitted too."""
 
@@ -35,10 +51,12 @@ class LensModel:
     def displacement_px(self, ideal_px: ArrayLike) -> F64:
         """How far the lens moves each ideal pixel (N, 2), px: real minus ideal."""
         u = np.asarray(ideal_px, dtype=np.float64).reshape(-1, 2)
-        q = (u - np.array(self.centre_px)) / self.scale_px
-        rho2 = np.sum(q * q, axis=1, keepdims=True)
-        out: F64 = q * self.scale_px * rho2 * (self.k1 + self.k2 * rho2)
-        return out
+        return self.radial.distort(u) - u
+
+    @property
+    def radial(self) -> RadialLens:
+        """The lens itself (the core's): distort, undistort, fold and valid radius."""
+        return RadialLens(self.centre_px, self.scale_px, self.k1, self.k2)
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

@@ -12,7 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core
-from planarcal.calib.lens_model import LENS_MODELS, LensModel
+from planarcal._core import RadialLens
+from planarcal.calib.lens_model import LENS_MODELS, LensKind, LensModel
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import IntrinsicsError, LensModelError
 from planarcal.homography import Solver, estimate_homography
@@ -39,9 +40,17 @@ class PlaneFit:
     def lens_model(self) -> LensModel | None:
         if self.lens not in LENS_MODELS[1:]:
             return None
-        cx, cy, scale, k1, k2 = self.plane.lens
-        s1, s2, scx, scy = self.plane.lens_std
-        return LensModel(self.lens, (cx, cy), scale, k1, k2, s1, s2, (scx, scy))
+        lens, std = self.plane.lens, self.plane.lens_std
+        return LensModel(
+            self.lens,
+            lens.centre_px,
+            lens.scale_px,
+            lens.k1,
+            lens.k2,
+            std.k1,
+            std.k2,
+            std.centre_px,
+        )
 
     def loo(self) -> tuple[F64, F64]:
         if self.loo_cache is None:
@@ -69,10 +78,8 @@ def fit_homography_alone(
 def homography_alone_at(h: F64, world: F64, image: F64, size: Any) -> Any:
     """The core's model of a homography alone, at H (its covariance on these points)."""
     w, hgt = _frame_size(image, size)
-    centre = ((w - 1.0) / 2.0, (hgt - 1.0) / 2.0)
-    return _core.FittedPlane.at(
-        h, centre, 0.5 * math.hypot(w, hgt), 0.0, 0.0, world, image, "none", (w, hgt)
-    )
+    ideal = RadialLens(((w - 1.0) / 2.0, (hgt - 1.0) / 2.0), 0.5 * math.hypot(w, hgt))
+    return _core.FittedPlane.at(h, ideal, world, image, LensKind.NONE, (w, hgt))
 
 
 def plane_at(
@@ -81,20 +88,18 @@ def plane_at(
     image: F64,
     size: tuple[int, int] | None,
     lens: str,
-    lens_params: tuple[float, float, float, float, float],
+    radial: RadialLens | None,
     intrinsics: CameraIntrinsics | None,
 ) -> Any:
     """The core's model of a calibration at known parameters (its covariance on these
-    points): H, the lens model `lens` with its (centre x, centre y, scale, k1, k2), or the
-    intrinsics."""
+    points): H, the lens model `lens` with its radial lens, or the intrinsics."""
     if lens == "intrinsics":
         if intrinsics is None:
             raise IntrinsicsError("lens model 'intrinsics' without the intrinsics")
         return homography_alone_at(h, world, intrinsics.undistort_points(image), size)
     if lens == "none":
         return homography_alone_at(h, world, image, size)
-    if size is None:
+    if size is None or radial is None:
         raise LensModelError(f"lens model {lens!r} without the image size it is centred on")
-    cx, cy, scale, k1, k2 = lens_params
     frame = (float(size[0]), float(size[1]))
-    return _core.FittedPlane.at(h, (cx, cy), scale, k1, k2, world, image, lens, frame)
+    return _core.FittedPlane.at(h, radial, world, image, LensKind(lens), frame)

@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from planarcal._core import RadialLens
 from planarcal.arguments import F64
 from planarcal.calib.calibration import Calibration, LensModel
 from planarcal.errors import HomographyError, IntrinsicsError, LensModelError
@@ -88,15 +87,10 @@ def _normalised_radius(intrinsics: CameraIntrinsics, ideal_px: F64) -> F64:
     return np.asarray(np.hypot(rays[:, 0], rays[:, 1]) / rays[:, 2], dtype=np.float64)
 
 
-def _radial(lens: LensModel) -> RadialLens:
-    """The calibration's lens as the core's radial lens (its fold and valid radius)."""
-    return RadialLens(lens.centre_px, lens.scale_px, lens.k1, lens.k2)
-
-
 def _before_fold(lens: LensModel, ideal_px: F64) -> NDArray[np.bool_]:
     """Which ideal pixels lie inside the lens model's fold (where it is one to one)."""
     rho = np.hypot(*((ideal_px - np.array(lens.centre_px)) / lens.scale_px).T)
-    return np.asarray(rho < (1.0 - 1e-6) * _radial(lens).fold_radius, dtype=np.bool_)
+    return np.asarray(rho < (1.0 - 1e-6) * lens.radial.fold_radius, dtype=np.bool_)
 
 
 def mappable(cal: Calibration, px: F64) -> NDArray[np.bool_]:
@@ -105,7 +99,7 @@ def mappable(cal: Calibration, px: F64) -> NDArray[np.bool_]:
     ok = np.asarray(np.isfinite(px).all(axis=1), dtype=np.bool_)
     lens = cal.lens
     if lens is not None:
-        valid = _radial(lens).valid_radius
+        valid = lens.radial.valid_radius
         if math.isfinite(valid):
             ok &= np.hypot(*(px - np.array(lens.centre_px)).T) < (1.0 - 1e-6) * valid
     elif cal.intrinsics is not None:

@@ -159,3 +159,43 @@ impl RadialLens {
         Ok((slf.get_type(), args.into_pyobject(slf.py())?))
     }
 }
+
+/// The standard deviations of a fitted lens's parameters (0 for those held fixed).
+#[pyclass(frozen, eq, module = "planarcal._core", name = "LensStd")]
+#[derive(Clone, Copy, PartialEq)]
+pub struct LensStd {
+    /// k1's.
+    #[pyo3(get)]
+    pub k1: f64,
+    /// k2's.
+    #[pyo3(get)]
+    pub k2: f64,
+    /// The centre's (x, y), px.
+    #[pyo3(get)]
+    pub centre_px: (f64, f64),
+}
+
+#[pymethods]
+impl LensStd {
+    #[new]
+    #[pyo3(signature = (k1, k2, centre_px))]
+    fn py_new(k1: f64, k2: f64, centre_px: (f64, f64)) -> Self {
+        LensStd { k1, k2, centre_px }
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "LensStd(k1={:?}, k2={:?}, centre_px=({:?}, {:?}))",
+            self.k1, self.k2, self.centre_px.0, self.centre_px.1
+        )
+    }
+
+    /// Pickling: the class and the constructor's arguments.
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyType>, Bound<'py, PyTuple>)> {
+        let s = slf.get();
+        let args = (s.k1, s.k2, s.centre_px);
+        Ok((slf.get_type(), args.into_pyobject(slf.py())?))
+    }
+}

@@ -26,6 +26,7 @@ fn _after_fork_in_child() {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<lens::RadialLens>()?;
+    m.add_class::<lens::LensStd>()?;
     m.add_class::<plane_model::FittedPlane>()?;
     m.add_class::<tracking::Tracks>()?;
     m.add_class::<robust::RobustResult>()?;

@@ -6,13 +6,14 @@ use nalgebra::Matrix2;
 use numpy::{PyArray1, PyArrayMethods};
 use planarcal_core::{
     fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, FittedMapper, LensParams,
-    MapReport, PlaneFit, PlaneModel, Point, RadialLens, UncertaintyError,
+    MapReport, PlaneFit, PlaneModel, Point, UncertaintyError,
 };
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
 use crate::errors::{invalid, lens_to_py, no_place, LensModelError};
 use crate::estimate::matrix_out;
+use crate::lens::{LensStd, RadialLens as PyLens};
 use crate::transform::{maybe_detach, new_array, on_invalid, OnInvalid};
 
 /// A homography from the plane (mm) to ideal pixels and a radial lens, fitted to points.
@@ -138,32 +139,24 @@ impl FittedPlane {
         FittedPlane::new(fit, w, d, size(image_size))
     }
 
-    /// at(h, lens_centre, lens_scale, k1, k2, world, image, lens, image_size)
+    /// at(h, lens, world, image, free, image_size)
     /// --
     ///
-    /// A model with given parameters (read back from a file) and its figures on the points.
+    /// A model with given parameters (read back from a file): H and the lens (a RadialLens),
+    /// with its figures on the points; `free` names the lens parameters counted as fitted.
     #[staticmethod]
-    #[allow(clippy::too_many_arguments)]
     fn at(
         h: &Bound<'_, PyAny>,
-        lens_centre: (f64, f64),
-        lens_scale: f64,
-        k1: f64,
-        k2: f64,
+        lens: &Bound<'_, PyLens>,
         world: &Bound<'_, PyAny>,
         image: &Bound<'_, PyAny>,
-        lens: &str,
+        free: &str,
         image_size: (f64, f64),
     ) -> PyResult<Self> {
-        let free = lens_params(lens)?;
+        let free = lens_params(free)?;
         let model = PlaneModel {
             h: matrix3(h, "h")?,
-            lens: RadialLens {
-                centre: [lens_centre.0, lens_centre.1],
-                scale: lens_scale,
-                k1,
-                k2,
-            },
+            lens: lens.get().lens,
         };
         let (w, d) = (pairs(world, "world")?, pairs(image, "image")?);
         let fit = plane_fit_at(&model, &w, &d, free, size(image_size)).map_err(lens_to_py)?;
@@ -176,11 +169,12 @@ impl FittedPlane {
         matrix_out(py, &self.plane_fit().model.h).into_any()
     }
 
-    /// (centre_x, centre_y, scale, k1, k2) of the lens, px.
+    /// The lens: where it shows an ideal pixel, and back.
     #[getter]
-    fn lens(&self) -> (f64, f64, f64, f64, f64) {
-        let l = self.plane_fit().model.lens;
-        (l.centre[0], l.centre[1], l.scale, l.k1, l.k2)
+    fn lens(&self) -> PyLens {
+        PyLens {
+            lens: self.plane_fit().model.lens,
+        }
     }
 
     /// The free lens parameters' name.
@@ -196,17 +190,16 @@ impl FittedPlane {
         self.mapping.mapper().undistortion().describe()
     }
 
-    /// Standard deviations of (k1, k2, centre_x, centre_y) from the covariance (0 if fixed).
+    /// The standard deviations of the lens's parameters, from the covariance (0 if fixed).
     #[getter]
-    fn lens_std(&self) -> (f64, f64, f64, f64) {
+    fn lens_std(&self) -> LensStd {
         let c = self.plane_fit().covariance();
         let s = self.plane_fit().params.frame.scale;
-        (
-            c[(8, 8)].sqrt(),
-            c[(9, 9)].sqrt(),
-            s * c[(10, 10)].sqrt(),
-            s * c[(11, 11)].sqrt(),
-        )
+        LensStd {
+            k1: c[(8, 8)].sqrt(),
+            k2: c[(9, 9)].sqrt(),
+            centre_px: (s * c[(10, 10)].sqrt(), s * c[(11, 11)].sqrt()),
+        }
     }
 
     /// Sum of squared residuals, px^2.
@@ -353,45 +346,5 @@ impl FittedPlane {
             })
             .collect();
         array2(py, out, &[2, 2])
-    }
-
-    /// undistort(px)
-    /// --
-    ///
-    /// Real pixels (N x 2) -> ideal pixels; NaN beyond the model's valid radius.
-    fn undistort<'py>(
-        &self,
-        py: Python<'py>,
-        px: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let pts = points2(px, "px")?;
-        let lens = self.plane_fit().model.lens;
-        let out: Vec<f64> = pts
-            .as_points()
-            .iter()
-            .flat_map(|d| lens.undistort(*d).unwrap_or([f64::NAN; 2]))
-            .collect();
-        array2(py, out, &[2])
-    }
-
-    /// distort(px)
-    /// --
-    ///
-    /// Ideal pixels (N x 2) -> the real pixels the lens shows them at.
-    fn distort<'py>(&self, py: Python<'py>, px: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-        let pts = points2(px, "px")?;
-        let lens = self.plane_fit().model.lens;
-        let out: Vec<f64> = pts
-            .as_points()
-            .iter()
-            .flat_map(|u| lens.distort(*u))
-            .collect();
-        array2(py, out, &[2])
-    }
-
-    /// The largest distance from the lens centre (px) the model can undistort.
-    #[getter]
-    fn valid_radius(&self) -> f64 {
-        self.plane_fit().model.lens.valid_radius()
     }
 }
