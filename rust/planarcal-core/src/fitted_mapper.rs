@@ -9,8 +9,9 @@ use nalgebra::Matrix2;
 use rayon::prelude::*;
 
 use crate::lens::LensError;
-use crate::mapper::{checked_size, MapReport, PlaneMapper};
+use crate::mapper::{checked_size, PlaneMapper};
 use crate::plane_model::{MatP, PlaneFit};
+use crate::point_failure::PointReport;
 use crate::threads;
 use crate::uncertainty::{covariance_at, InversePlane};
 use crate::Point;
@@ -83,7 +84,7 @@ impl FittedMapper {
 
     /// Maps `px` into `out` (mm), NaN where a pixel has no place on the plane, and reports
     /// those: `PlaneMapper::map_into`.
-    pub fn map_into(&self, px: &[Point], out: &mut [Point]) -> MapReport {
+    pub fn map_into(&self, px: &[Point], out: &mut [Point]) -> PointReport {
         self.mapper().map_into(px, out)
     }
 
@@ -101,7 +102,7 @@ impl FittedMapper {
         pixel_sigma: f64,
         out: &mut [Point],
         std: &mut [f64],
-    ) -> Result<MapReport, UncertaintyError> {
+    ) -> Result<PointReport, UncertaintyError> {
         self.map_with(px, pixel_sigma, out, std, |c| {
             c.map_or(f64::NAN, |c| c.trace().sqrt())
         })
@@ -115,7 +116,7 @@ impl FittedMapper {
         pixel_sigma: f64,
         out: &mut [Point],
         cov: &mut [[f64; 4]],
-    ) -> Result<MapReport, UncertaintyError> {
+    ) -> Result<PointReport, UncertaintyError> {
         self.map_with(px, pixel_sigma, out, cov, |c| {
             let c = c.unwrap_or(Matrix2::from_element(f64::NAN));
             [c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)]]
@@ -140,7 +141,7 @@ impl FittedMapper {
         out: &mut [Point],
         extra: &mut [T],
         each: impl Fn(Option<Matrix2<f64>>) -> T + Sync,
-    ) -> Result<MapReport, UncertaintyError> {
+    ) -> Result<PointReport, UncertaintyError> {
         let cov = self.parameter_covariance(pixel_sigma)?;
         let n = px.len().min(out.len()).min(extra.len());
         let (px, out, extra) = (&px[..n], &mut out[..n], &mut extra[..n]);

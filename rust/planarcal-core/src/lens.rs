@@ -9,7 +9,8 @@
 //! reaches zero); `undistort` refuses points beyond it instead of returning a wrong value.
 
 use crate::error::HomographyError;
-use crate::transform::{map_indexed, PointStatus};
+use crate::point_failure::PointFailure;
+use crate::transform::map_indexed;
 use crate::Point;
 
 /// Newton's method on the radial equation converges to rounding in a handful of steps for
@@ -254,7 +255,7 @@ impl RadialLens {
             self.undistort_within(src[i], fold)
                 .filter(|u| u[0].is_finite() && u[1].is_finite())
                 // The report's kind goes unused: only the count and the first index do.
-                .ok_or(PointStatus::NonFinite)
+                .ok_or(PointFailure::NonFinite)
         });
         (report.invalid(), report.first.map(|(i, _)| i))
     }

@@ -12,8 +12,9 @@
 //! batches at memory speed, with the same answers, and `fitted_mapper` pairs it with a fit to
 //! give each point's uncertainty too (what the bindings map through); `contours` measures a
 //! frame's traced object outlines (`image`, `smooth`, `outline`: moved to the grey-level edge,
-//! sub-pixel)
-//! and `tracking` keeps their IDs from frame to frame.
+//! sub-pixel), `tracking` keeps their IDs from frame to frame and `json_line` writes each
+//! frame as the production loop's JSON line. `point_failure` says why a point has no image,
+//! for the transforms and the mappers alike.
 //! Geometry is f64; nothing panics on user input.
 //!
 //! The modules are the crate's own; its surface is the items re-exported here.
@@ -30,6 +31,7 @@ mod error;
 mod estimate;
 mod fitted_mapper;
 mod image;
+mod json_line;
 mod leave_one_out;
 mod lens;
 mod lm;
@@ -38,6 +40,7 @@ mod normalize;
 mod orientation;
 mod outline;
 mod plane_model;
+mod point_failure;
 mod refine;
 mod reprojection;
 mod robust;
@@ -62,10 +65,12 @@ pub use estimate::{
 };
 pub use fitted_mapper::{FittedMapper, UncertaintyError};
 pub use image::{median_grey, GreyU8};
+pub use json_line::{FrameObjects, ObjectCountMismatch};
 pub use leave_one_out::leave_one_out;
 pub use lens::{LensError, RadialLens};
-pub use mapper::{MapReport, PlaneMapper, Undistortion};
+pub use mapper::{PlaneMapper, Undistortion};
 pub use plane_model::{fit_plane, plane_fit_at, LensParams, PlaneFit, PlaneModel};
+pub use point_failure::{PointFailure, PointReport, POINT_FAILURES};
 pub use refine::RefineReport;
 pub use reprojection::{reprojection_errors_into, ErrorStats};
 pub use robust::{
@@ -73,7 +78,5 @@ pub use robust::{
 };
 pub use threads::forked_child;
 pub use tracking::Tracks;
-pub use transform::{
-    invert, Coord, Homography, Orientation, PointStatus, Projective, TransformReport,
-};
-pub use uncertainty::{predicted_loo_covariance, world_covariance, InversePlane, MapFailure};
+pub use transform::{invert, Coord, Homography, Orientation, Projective};
+pub use uncertainty::{predicted_loo_covariance, world_covariance, InversePlane};

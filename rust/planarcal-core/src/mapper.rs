@@ -36,9 +36,10 @@ use rayon::prelude::*;
 
 use crate::lens::{LensError, RadialLens};
 use crate::plane_model::PlaneModel;
+use crate::point_failure::{PointFailure, PointReport};
 use crate::threads;
 use crate::transform::PARALLEL_MIN_POINTS;
-use crate::uncertainty::{InversePlane, MapFailure};
+use crate::uncertainty::InversePlane;
 use crate::Point;
 
 /// Points per parallel task (each task's results are independent of the split).
@@ -124,46 +125,6 @@ impl Undistortion {
             ),
             Undistortion::Newton => "Newton's method at every point".into(),
         }
-    }
-}
-
-/// Counts of the pixels a batch could not map, and the first of them.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct MapReport {
-    /// Pixels with a NaN or infinite coordinate.
-    pub non_finite: usize,
-    /// Pixels beyond the lens model's valid radius.
-    pub outside_lens: usize,
-    /// Pixels whose ray misses the plane.
-    pub behind_horizon: usize,
-    /// The first failed pixel's index and why.
-    pub first: Option<(usize, MapFailure)>,
-}
-
-impl MapReport {
-    /// Pixels not mapped.
-    pub fn invalid(&self) -> usize {
-        self.non_finite + self.outside_lens + self.behind_horizon
-    }
-
-    fn record(&mut self, index: usize, failure: MapFailure) {
-        match failure {
-            MapFailure::NonFinite => self.non_finite += 1,
-            MapFailure::OutsideLens => self.outside_lens += 1,
-            MapFailure::BehindHorizon => self.behind_horizon += 1,
-        }
-        if self.first.is_none() {
-            self.first = Some((index, failure));
-        }
-    }
-
-    /// Joins the report of the batch that follows this one.
-    fn then(mut self, next: MapReport) -> Self {
-        self.non_finite += next.non_finite;
-        self.outside_lens += next.outside_lens;
-        self.behind_horizon += next.behind_horizon;
-        self.first = self.first.or(next.first);
-        self
     }
 }
 
@@ -681,7 +642,7 @@ impl PlaneMapper {
     }
 
     /// The world point (mm) pixel d sees: `InversePlane::map`'s answer, by the fast path.
-    pub fn map(&self, d: Point) -> Result<Point, MapFailure> {
+    pub fn map(&self, d: Point) -> Result<Point, PointFailure> {
         let f = &self.fast;
         let mut out = [[0.0; 2]];
         let clean = dispatch!(self.kernel, P => f.chunk::<P>(&[d], &mut out), _ => false);
@@ -696,7 +657,7 @@ impl PlaneMapper {
     /// and reports those. Maps the first min(px.len(), out.len()) points (callers pass equal
     /// lengths). Large batches are split over rayon's threads; the results are the same, bit
     /// for bit, whatever the split.
-    pub fn map_into(&self, px: &[Point], out: &mut [Point]) -> MapReport {
+    pub fn map_into(&self, px: &[Point], out: &mut [Point]) -> PointReport {
         let n = px.len().min(out.len());
         let (px, out) = (&px[..n], &mut out[..n]);
         if n < PARALLEL_MIN_POINTS || !threads::pool_allowed() {
@@ -708,17 +669,17 @@ impl PlaneMapper {
             .map(|(c, (s, o))| self.map_chunk(c * CHUNK_POINTS, s, o))
             .collect::<Vec<_>>()
             .into_iter()
-            .fold(MapReport::default(), MapReport::then)
+            .fold(PointReport::default(), PointReport::then)
     }
 
     /// One chunk: the fast kernel, then the reference on the points it was not sure of.
-    fn map_chunk(&self, start: usize, px: &[Point], out: &mut [Point]) -> MapReport {
+    fn map_chunk(&self, start: usize, px: &[Point], out: &mut [Point]) -> PointReport {
         let f = &self.fast;
         let all = dispatch!(self.kernel, P => f.chunk::<P>(px, out), _ => {
             out.fill([f64::NAN; 2]);
             false
         });
-        let mut report = MapReport::default();
+        let mut report = PointReport::default();
         if all {
             return report;
         }
@@ -985,7 +946,7 @@ mod tests {
         let reference = InversePlane::new(model).unwrap().within_image(W, H);
         let mut out = vec![[0.0; 2]; px.len()];
         let report = mapper.map_into(px, &mut out);
-        let mut expected = MapReport::default();
+        let mut expected = PointReport::default();
         let mut worst: f64 = 0.0;
         for (i, p) in px.iter().enumerate() {
             let single = mapper.map(*p);

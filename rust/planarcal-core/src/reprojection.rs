@@ -5,7 +5,8 @@ use nalgebra::Matrix3;
 
 use crate::correspondences::check_finite;
 use crate::error::{HomographyError, PointSet, Result};
-use crate::transform::{map_indexed, Homography, Orientation, TransformReport};
+use crate::point_failure::PointReport;
+use crate::transform::{map_indexed, Homography, Orientation};
 use crate::Point;
 
 /// Per-point errors into `out`; +inf where the source point has no image (see the report).
@@ -16,7 +17,7 @@ pub fn reprojection_errors_into(
     dst: &[Point],
     out: &mut [f64],
     orientation: Orientation,
-) -> Result<TransformReport> {
+) -> Result<PointReport> {
     if src.len() != dst.len() || out.len() != src.len() {
         return Err(HomographyError::LengthMismatch {
             src: src.len(),
@@ -88,7 +89,7 @@ impl ErrorStats {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::transform::PointStatus;
+    use crate::point_failure::PointFailure;
 
     #[test]
     fn errors_are_euclidean_distances() {
@@ -121,7 +122,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(e, [0.0, f64::INFINITY]);
-        assert_eq!(r.first, Some((1, PointStatus::AtInfinity)));
+        assert_eq!(r.first, Some((1, PointFailure::AtInfinity)));
     }
 
     #[test]

@@ -7,33 +7,12 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use crate::error::{HomographyError, Result};
+use crate::point_failure::{PointFailure, PointReport};
 use crate::threads;
 
 /// Below this many points a batch runs on the calling thread: splitting costs more than it saves.
 pub const PARALLEL_MIN_POINTS: usize = 32_768;
 const CHUNK_POINTS: usize = 8_192;
-
-/// Why a point has no image.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PointStatus {
-    /// The input point has a NaN or infinite coordinate.
-    NonFinite,
-    /// w = 0 to within rounding, or the image overflows: the point maps to infinity.
-    AtInfinity,
-    /// w < 0 under an oriented homography: the point is on the far side of the horizon.
-    BehindHorizon,
-}
-
-impl PointStatus {
-    /// The failure in words, after "point ... ".
-    pub fn describe(self) -> &'static str {
-        match self {
-            PointStatus::NonFinite => "has a non-finite coordinate",
-            PointStatus::AtInfinity => "maps to infinity",
-            PointStatus::BehindHorizon => "lies behind the horizon",
-        }
-    }
-}
 
 /// Whether w < 0 is an error (matrices oriented as this crate returns them) or only w = 0 is
 /// (matrices of unknown sign, as OpenCV treats them).
@@ -43,46 +22,6 @@ pub enum Orientation {
     Oriented,
     /// Only w = 0 fails.
     Unoriented,
-}
-
-/// Counts of the points a batch could not map, and the first of them.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct TransformReport {
-    /// Points with a NaN or infinite coordinate.
-    pub non_finite: usize,
-    /// Points mapped to infinity (w = 0).
-    pub at_infinity: usize,
-    /// Points behind the horizon (w < 0, oriented).
-    pub behind_horizon: usize,
-    /// The first failed point's index and why.
-    pub first: Option<(usize, PointStatus)>,
-}
-
-impl TransformReport {
-    /// Points not mapped.
-    pub fn invalid(&self) -> usize {
-        self.non_finite + self.at_infinity + self.behind_horizon
-    }
-
-    fn record(&mut self, index: usize, status: PointStatus) {
-        match status {
-            PointStatus::NonFinite => self.non_finite += 1,
-            PointStatus::AtInfinity => self.at_infinity += 1,
-            PointStatus::BehindHorizon => self.behind_horizon += 1,
-        }
-        if self.first.is_none() {
-            self.first = Some((index, status));
-        }
-    }
-
-    /// Joins the report of the batch that follows this one.
-    fn then(mut self, next: TransformReport) -> Self {
-        self.non_finite += next.non_finite;
-        self.at_infinity += next.at_infinity;
-        self.behind_horizon += next.behind_horizon;
-        self.first = self.first.or(next.first);
-        self
-    }
 }
 
 /// A coordinate type points are read from and written to; arithmetic is always f64.
@@ -161,11 +100,11 @@ impl<const S: usize, const D: usize> Projective<S, D> {
         &self,
         p: &[T; S],
         orientation: Orientation,
-    ) -> std::result::Result<[f64; D], PointStatus> {
+    ) -> std::result::Result<[f64; D], PointFailure> {
         let mut x = [0.0; S];
         for k in 0..S {
             if !p[k].is_finite() {
-                return Err(PointStatus::NonFinite);
+                return Err(PointFailure::NonFinite);
             }
             x[k] = p[k].get();
         }
@@ -178,10 +117,10 @@ impl<const S: usize, const D: usize> Projective<S, D> {
             scale += t.abs();
         }
         if !(w.abs() > W_ROUNDING * scale) {
-            return Err(PointStatus::AtInfinity);
+            return Err(PointFailure::AtInfinity);
         }
         if orientation == Orientation::Oriented && w < 0.0 {
-            return Err(PointStatus::BehindHorizon);
+            return Err(PointFailure::BehindHorizon);
         }
         let iw = 1.0 / w;
         let mut out = [0.0; D];
@@ -193,7 +132,7 @@ impl<const S: usize, const D: usize> Projective<S, D> {
             }
             *o = v * iw;
             if !o.is_finite() {
-                return Err(PointStatus::AtInfinity);
+                return Err(PointFailure::AtInfinity);
             }
         }
         Ok(out)
@@ -205,13 +144,13 @@ impl<const S: usize, const D: usize> Projective<S, D> {
         src: &[[T; S]],
         out: &mut [[T; D]],
         orientation: Orientation,
-    ) -> TransformReport {
+    ) -> PointReport {
         let run = |start: usize, src: &[[T; S]], out: &mut [[T; D]]| {
             if self.apply_chunk_fast(src, out, orientation) {
-                return TransformReport::default();
+                return PointReport::default();
             }
             // Some point has no image: redo the chunk point by point to say which.
-            let mut report = TransformReport::default();
+            let mut report = PointReport::default();
             for (k, (p, o)) in src.iter().zip(out.iter_mut()).enumerate() {
                 match self.apply(p, orientation).and_then(|y| narrow(&y)) {
                     Ok(v) => *o = v,
@@ -234,7 +173,7 @@ impl<const S: usize, const D: usize> Projective<S, D> {
             .map(|(c, (s, o))| run(c * CHUNK_POINTS, s, o))
             .collect::<Vec<_>>()
             .into_iter()
-            .fold(TransformReport::default(), TransformReport::then)
+            .fold(PointReport::default(), PointReport::then)
     }
 
     /// The branch-free kernel: maps the whole chunk and returns whether every point had a
@@ -310,12 +249,12 @@ impl<const S: usize, const D: usize> Projective<S, D> {
 
 /// The image in the output type, or AtInfinity if it overflows that type.
 #[inline(always)]
-fn narrow<T: Coord, const D: usize>(y: &[f64; D]) -> std::result::Result<[T; D], PointStatus> {
+fn narrow<T: Coord, const D: usize>(y: &[f64; D]) -> std::result::Result<[T; D], PointFailure> {
     let mut o = [T::NAN; D];
     for d in 0..D {
         o[d] = T::put(y[d]);
         if !o[d].is_finite() {
-            return Err(PointStatus::AtInfinity);
+            return Err(PointFailure::AtInfinity);
         }
     }
     Ok(o)
@@ -370,13 +309,13 @@ pub fn invert(h: &Matrix3<f64>) -> Result<Matrix3<f64>> {
 }
 
 /// Fills out[i] = f(i), in parallel chunks for large batches, `invalid` where f fails.
-pub(crate) fn map_indexed<O, F>(out: &mut [O], invalid: O, f: F) -> TransformReport
+pub(crate) fn map_indexed<O, F>(out: &mut [O], invalid: O, f: F) -> PointReport
 where
     O: Copy + Send + Sync,
-    F: Fn(usize) -> std::result::Result<O, PointStatus> + Sync,
+    F: Fn(usize) -> std::result::Result<O, PointFailure> + Sync,
 {
     let run = |start: usize, chunk: &mut [O]| {
-        let mut report = TransformReport::default();
+        let mut report = PointReport::default();
         for (k, slot) in chunk.iter_mut().enumerate() {
             match f(start + k) {
                 Ok(v) => *slot = v,
@@ -396,7 +335,7 @@ where
         .map(|(c, chunk)| run(c * CHUNK_POINTS, chunk))
         .collect::<Vec<_>>()
         .into_iter()
-        .fold(TransformReport::default(), TransformReport::then)
+        .fold(PointReport::default(), PointReport::then)
 }
 
 #[cfg(test)]
@@ -428,11 +367,12 @@ mod tests {
         assert!(out[1..].iter().all(|p| p[0].is_nan() && p[1].is_nan()));
         assert_eq!(
             r,
-            TransformReport {
+            PointReport {
                 non_finite: 1,
                 at_infinity: 1,
+                outside_lens: 0,
                 behind_horizon: 1,
-                first: Some((1, PointStatus::AtInfinity))
+                first: Some((1, PointFailure::AtInfinity))
             }
         );
         // Unoriented (OpenCV's convention): only w = 0 is an error.

@@ -11,32 +11,9 @@ use nalgebra::{Matrix2, Matrix3, Vector3};
 
 use crate::lens::{LensError, RadialLens};
 use crate::plane_model::{JacP, MatP, PlaneFit, PlaneModel};
+use crate::point_failure::PointFailure;
 use crate::transform::invert;
 use crate::Point;
-
-/// Why a pixel has no place on the plane.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MapFailure {
-    /// A coordinate is NaN or infinite.
-    NonFinite,
-    /// Beyond the radius where the lens model can be inverted.
-    OutsideLens,
-    /// Its ray does not meet the plane in front of the camera (at or beyond the horizon).
-    BehindHorizon,
-}
-
-impl MapFailure {
-    /// The failure in words, after "pixel ... ".
-    pub fn describe(self) -> &'static str {
-        match self {
-            MapFailure::NonFinite => "has a non-finite coordinate",
-            MapFailure::OutsideLens => {
-                "lies beyond the image the lens model was fitted on (or its valid radius)"
-            }
-            MapFailure::BehindHorizon => "sees no point of the plane (at or beyond its horizon)",
-        }
-    }
-}
 
 /// Pixels -> plane through a model: the inverse homography and the lens.
 #[derive(Debug, Clone, Copy)]
@@ -74,24 +51,24 @@ impl InversePlane {
 
     /// The world point (mm) pixel d sees.
     #[inline]
-    pub fn map(&self, d: Point) -> Result<Point, MapFailure> {
+    pub fn map(&self, d: Point) -> Result<Point, PointFailure> {
         if !(d[0].is_finite() && d[1].is_finite()) {
-            return Err(MapFailure::NonFinite);
+            return Err(PointFailure::NonFinite);
         }
         let r = (d[0] - self.lens.centre[0]).hypot(d[1] - self.lens.centre[1]);
         if !(r <= self.limit) {
-            return Err(MapFailure::OutsideLens);
+            return Err(PointFailure::OutsideLens);
         }
-        let u = self.lens.undistort(d).ok_or(MapFailure::OutsideLens)?;
+        let u = self.lens.undistort(d).ok_or(PointFailure::OutsideLens)?;
         let v = self.hinv * Vector3::new(u[0], u[1], 1.0);
         // The true inverse of an oriented H is oriented: w > 0 in front of the camera.
         let scale = self.hinv.row(2).abs().sum() * (1.0 + u[0].abs() + u[1].abs());
         if !(v[2] > 8.0 * f64::EPSILON * scale) {
-            return Err(MapFailure::BehindHorizon);
+            return Err(PointFailure::BehindHorizon);
         }
         let w = [v[0] / v[2], v[1] / v[2]];
         if !(w[0].is_finite() && w[1].is_finite()) {
-            return Err(MapFailure::BehindHorizon);
+            return Err(PointFailure::BehindHorizon);
         }
         Ok(w)
     }
@@ -190,7 +167,7 @@ mod tests {
             let back = inv.map(model.world_to_image(w).unwrap()).unwrap();
             assert!((back[0] - w[0]).abs() < 1e-9 && (back[1] - w[1]).abs() < 1e-9);
         }
-        assert_eq!(inv.map([f64::NAN, 1.0]), Err(MapFailure::NonFinite));
+        assert_eq!(inv.map([f64::NAN, 1.0]), Err(PointFailure::NonFinite));
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! classes take them positionally, so every error here is made lazily, without the GIL.
 
 use planarcal_core::{
-    HomographyError as CoreError, LensError, MapFailure, PointSet, PointStatus, TransformReport,
+    HomographyError as CoreError, LensError, PointFailure, PointReport, PointSet, POINT_FAILURES,
 };
 use pyo3::import_exception;
 use pyo3::PyErr;
@@ -78,34 +78,35 @@ pub fn invalid_arg(name: &str, message: impl Into<String>) -> PyErr {
     ArgumentError::new_err(args(message.into(), None, set))
 }
 
-/// The error for pixels with no place on the plane, the first of them at `index`: beyond the
-/// lens model's valid radius is the lens model's error, the rest are points without an image.
-pub fn no_place(failure: MapFailure, index: usize, message: String) -> PyErr {
-    let a = args(message, Some(index), None);
+/// The exception for points that failed as `failure` (the first of a batch): beyond the lens
+/// model's valid radius is the lens model's error, the rest are points without an image.
+fn failed(failure: Option<PointFailure>, a: Args) -> PyErr {
     match failure {
-        MapFailure::OutsideLens => LensModelError::new_err(a),
+        Some(PointFailure::OutsideLens) => LensModelError::new_err(a),
         _ => PointAtInfinityError::new_err(a),
     }
 }
 
-/// The error for a batch in which some points had no image (`set`: the points were that set
-/// of a correspondence problem).
-pub fn no_image(
-    report: &TransformReport,
-    total: usize,
-    what: &str,
-    set: Option<PointSet>,
-) -> PyErr {
-    let mut parts = Vec::new();
-    for (count, status) in [
-        (report.non_finite, PointStatus::NonFinite),
-        (report.at_infinity, PointStatus::AtInfinity),
-        (report.behind_horizon, PointStatus::BehindHorizon),
-    ] {
-        if count > 0 {
-            parts.push(format!("{count} {}", status.describe()));
-        }
-    }
+/// The error for a batch of `total` pixels of which some have no place on the plane, naming
+/// the first; None if all have one.
+pub fn no_place(report: &PointReport, total: usize) -> Option<PyErr> {
+    let (index, failure) = report.first?;
+    let message = format!(
+        "{} of {total} pixels have no place on the plane; the first is point {index}, which {}",
+        report.invalid(),
+        failure.describe_pixel()
+    );
+    Some(failed(Some(failure), args(message, Some(index), None)))
+}
+
+/// The error for a batch in which some points had no image under a homography (`set`: the
+/// points were that set of a correspondence problem).
+pub fn no_image(report: &PointReport, total: usize, what: &str, set: Option<PointSet>) -> PyErr {
+    let parts: Vec<String> = POINT_FAILURES
+        .into_iter()
+        .filter(|&kind| report.count(kind) > 0)
+        .map(|kind| format!("{} {}", report.count(kind), kind.describe()))
+        .collect();
     let first = report
         .first
         .map(|(i, s)| format!("; the first is point {i}, which {}", s.describe()))
@@ -123,5 +124,6 @@ pub fn no_image(
         report.invalid(),
         parts.join(", "),
     );
-    PointAtInfinityError::new_err(args(message, report.first.map(|(i, _)| i), set))
+    let index = report.first.map(|(i, _)| i);
+    failed(report.first.map(|(_, f)| f), args(message, index, set))
 }

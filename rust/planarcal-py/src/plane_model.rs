@@ -6,7 +6,7 @@ use nalgebra::Matrix2;
 use numpy::{PyArray1, PyArrayMethods};
 use planarcal_core::{
     fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, FittedMapper, LensParams,
-    MapReport, PlaneFit, PlaneModel, Point, UncertaintyError,
+    PlaneFit, PlaneModel, Point, PointReport, UncertaintyError,
 };
 use pyo3::prelude::*;
 
@@ -47,18 +47,6 @@ fn array2<'py>(py: Python<'py>, rows: Vec<f64>, cols: &[usize]) -> PyResult<Boun
     Ok(PyArray1::from_vec(py, rows).reshape(shape)?.into_any())
 }
 
-/// The error for a batch of `total` pixels of which some have no place on the plane, naming
-/// the first; None if all have one.
-fn map_error(report: &MapReport, total: usize) -> Option<PyErr> {
-    let (index, failure) = report.first?;
-    let message = format!(
-        "{} of {total} pixels have no place on the plane; the first is point {index}, which {}",
-        report.invalid(),
-        failure.describe()
-    );
-    Some(no_place(failure, index, message))
-}
-
 fn uncertainty_to_py(e: UncertaintyError) -> PyErr {
     match e {
         UncertaintyError::InvalidPixelSigma(_) => invalid(e.to_string()),
@@ -97,7 +85,7 @@ impl FittedPlane {
                 &[Point],
                 &mut [Point],
                 &mut [T],
-            ) -> Result<MapReport, UncertaintyError>
+            ) -> Result<PointReport, UncertaintyError>
             + Send,
     ) -> PyResult<(Vec<f64>, Vec<T>)> {
         // Checked before the pixels, as always.
@@ -110,7 +98,7 @@ impl FittedPlane {
         let (mut world, mut extra) = (vec![[f64::NAN; 2]; n], vec![fill; n]);
         let report = maybe_detach(py, n, || map(&self.mapping, pts, &mut world, &mut extra))
             .map_err(uncertainty_to_py)?;
-        if let Some(e) = map_error(&report, n) {
+        if let Some(e) = no_place(&report, n) {
             return Err(e);
         }
         Ok((world.into_flattened(), extra))
@@ -246,7 +234,7 @@ impl FittedPlane {
             mapping.map_into(src, o.as_chunks_mut::<2>().0)
         })?;
         if mode == OnInvalid::Raise {
-            if let Some(e) = map_error(&report, n) {
+            if let Some(e) = no_place(&report, n) {
                 return Err(e);
             }
         }

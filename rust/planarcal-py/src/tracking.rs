@@ -1,7 +1,8 @@
-//! Object IDs from frame to frame (planarcal_core::tracking): one call per frame.
+//! Object IDs from frame to frame (planarcal_core::tracking): one call per frame; and each
+//! frame's JSON line (planarcal_core::FrameObjects).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
-use planarcal_core::Tracks as CoreTracks;
+use planarcal_core::{FrameObjects, Tracks as CoreTracks};
 use pyo3::prelude::*;
 
 use crate::convert::{f64_array, points2};
@@ -92,47 +93,14 @@ pub fn frame_json(
         points2(world_mm, "world_mm")?,
     );
     let std = f64_array(std_mm, "std_mm")?;
-    let (px, mm, std) = (px.as_points(), mm.as_points(), std.values());
-    let n = ids.len();
-    if px.len() != n || mm.len() != n || std.len() != n {
-        return Err(invalid(format!(
-            "one centroid, position and std per id ({n}), got {}, {} and {}",
-            px.len(),
-            mm.len(),
-            std.len()
-        )));
+    FrameObjects {
+        index,
+        time: timestamp,
+        ids,
+        centroids_px: px.as_points(),
+        world_mm: mm.as_points(),
+        std_mm: std.values(),
     }
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by_key(|&k| ids[k]);
-    use std::fmt::Write;
-    let mut line = String::with_capacity(48 + 96 * n);
-    let number = |line: &mut String, v: f64, decimals: usize| {
-        // Writing to a String cannot fail.
-        let _ = if v.is_finite() {
-            write!(line, "{v:.decimals$}")
-        } else {
-            write!(line, "null")
-        };
-    };
-    let _ = write!(line, "{{\"frame\":{index},\"t\":");
-    number(&mut line, timestamp, 6);
-    line.push_str(",\"objects\":[");
-    for (i, &k) in order.iter().enumerate() {
-        if i > 0 {
-            line.push(',');
-        }
-        let _ = write!(line, "{{\"id\":{},\"px\":[", ids[k]);
-        number(&mut line, px[k][0], 3);
-        line.push(',');
-        number(&mut line, px[k][1], 3);
-        line.push_str("],\"mm\":[");
-        number(&mut line, mm[k][0], 4);
-        line.push(',');
-        number(&mut line, mm[k][1], 4);
-        line.push_str("],\"std_mm\":");
-        number(&mut line, std[k], 5);
-        line.push('}');
-    }
-    line.push_str("]}");
-    Ok(line)
+    .json_line()
+    .map_err(|e| invalid(e.to_string()))
 }

@@ -1,7 +1,7 @@
 //! Point transforms: the native transform_points and OpenCV's perspectiveTransform.
 
 use numpy::{PyArrayDyn, PyArrayMethods};
-use planarcal_core::{invert, Coord, Homography, Orientation, Projective, TransformReport};
+use planarcal_core::{invert, Coord, Homography, Orientation, PointReport, Projective};
 use pyo3::prelude::*;
 
 use crate::convert::{f64_array, float_array, matrix3, point_count, points2, ArrayArg, Floats};
@@ -96,7 +96,7 @@ fn project<'py, T, const S: usize, const D: usize>(
     py: Python<'py>,
     m: &[f64],
     src: &ArrayArg<'py, T>,
-) -> PyResult<(Bound<'py, PyArrayDyn<T>>, TransformReport)>
+) -> PyResult<(Bound<'py, PyArrayDyn<T>>, PointReport)>
 where
     T: numpy::Element + Coord,
 {
