@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal._core import RadialLens
-from planarcal.errors import ImageError
+from planarcal.errors import ArgumentError, ImageError
 
 F64 = NDArray[np.float64]
 
@@ -47,17 +47,19 @@ def _heights(value: ArrayLike, shape: tuple[int, ...]) -> F64 | None:
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError("height_mm must be a number or an array of numbers") from None
+        raise ArgumentError("height_mm must be a number or an array of numbers") from None
     try:
         flat = np.broadcast_to(a, shape).reshape(-1)
     except ValueError:
-        raise ValueError(
+        raise ArgumentError(
             f"height_mm must be a scalar or one height per point (shape {shape}), got shape "
             f"{a.shape}"
         ) from None
     bad = np.flatnonzero(~np.isfinite(flat))
     if bad.size:
-        raise ValueError(f"height_mm: height {int(bad[0])} is not finite: {float(flat[bad[0]])!r}")
+        raise ArgumentError(
+            f"height_mm: height {int(bad[0])} is not finite: {float(flat[bad[0]])!r}"
+        )
     return None if not flat.any() else np.ascontiguousarray(flat)
 
 
@@ -84,13 +86,13 @@ class PlanePose:
     def __post_init__(self) -> None:
         d = arguments.real("distance_mm", self.distance_mm)
         if d <= 0:
-            raise ValueError(
+            raise ArgumentError(
                 f"distance_mm must be positive, got {self.distance_mm!r}: a plane at a "
                 "distance <= 0 is at or behind the camera"
             )
         tilt = arguments.real("tilt_deg", self.tilt_deg)
         if not abs(tilt) < 90.0:
-            raise ValueError(
+            raise ArgumentError(
                 f"tilt_deg must be between -90 and 90 (exclusive), got {self.tilt_deg!r}: "
                 "at 90 degrees or more the camera sees the plane edge-on or from behind"
             )
@@ -158,7 +160,7 @@ class CameraModel:
         k1, k2 = arguments.real("k1", self.k1), arguments.real("k2", self.k2)
         # The lens must invert over the image: its fold, seen in the image, beyond the corners.
         if (k1 or k2) and not self.lens.valid_radius > self._corner_radius() * self.focal_px:
-            raise ValueError(
+            raise ArgumentError(
                 f"distortion k1={k1}, k2={k2} folds over inside the image: the radial "
                 "mapping stops increasing before the image corners, so pixels near them "
                 "would see two places at once; use milder coefficients"
@@ -251,7 +253,7 @@ class CameraModel:
         if behind.size:
             i = int(behind[0])
             where = "" if heights is None else f" at height {float(heights[i])!r} mm"
-            raise ValueError(
+            raise ArgumentError(
                 f"world point {i} {p[i].tolist()}{where} is behind the camera: it has no image"
             )
         px = self._to_px(cam[:, :2] / cam[:, 2:])
@@ -268,7 +270,7 @@ class CameraModel:
         )
         if not ok.all():
             i = int(np.flatnonzero(~ok)[0])
-            raise ValueError(f"pixel {i} {p[i].tolist()} sees above the plane's horizon")
+            raise ArgumentError(f"pixel {i} {p[i].tolist()} sees above the plane's horizon")
         return np.column_stack([x, y]).reshape(*shape, 2)
 
     def _rays_to_plane(
