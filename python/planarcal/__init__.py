@@ -30,8 +30,10 @@ from planarcal.calib.detect import BoardDetection, detect_board
 from planarcal.camera import CameraIntrinsics, calibrate_camera
 from planarcal.errors import (
     ArgumentError,
+    ArgumentTypeError,
     BoardError,
     BoardNotFoundError,
+    BoardTurnedError,
     CalibrationFileError,
     CameraError,
     DegenerateError,
@@ -46,6 +48,7 @@ from planarcal.errors import (
     OpenCVCompatiblePointAtInfinityError,
     OutputError,
     PointAtInfinityError,
+    StateError,
 )
 from planarcal.homography import (
     SOLVERS,
@@ -101,9 +104,11 @@ __all__ = [
     "USAC_PARALLEL",
     "USAC_PROSAC",
     "ArgumentError",
+    "ArgumentTypeError",
     "BoardDetection",
     "BoardError",
     "BoardNotFoundError",
+    "BoardTurnedError",
     "Calibration",
     "CalibrationFileError",
     "CalibrationSummary",
@@ -131,6 +136,7 @@ __all__ = [
     "RobustMethod",
     "RobustResult",
     "Solver",
+    "StateError",
     "StopReason",
     "TrackedObject",
     "Tracker",

@@ -8,6 +8,7 @@ device or a stream failed, not an argument). The Rust bindings raise the classes
 
     Error
     ├── ArgumentError            (ValueError) a bad argument: shape, dtype, NaN, option value
+    │   ├── ArgumentTypeError    (also TypeError) an argument of the wrong type
     │   └── OpenCVCompatibleArgumentError   (also cv2.error)
     ├── HomographyError          (ValueError) no homography can be estimated or applied
     │   ├── DegenerateError      well-formed points whose geometry determines none
@@ -15,9 +16,10 @@ device or a stream failed, not an argument). The Rust bindings raise the classes
     │   └── OpenCVCompatibleError           (also cv2.error)
     │       └── OpenCVCompatiblePointAtInfinityError
     ├── LensModelError           (ValueError) a lens model that cannot be fitted or applied
-    ├── BoardError, ImageError, BoardNotFoundError, CalibrationFileError, FrameSizeError,
-    │   IntrinsicsError, OutputError                                          (ValueError)
-    └── CameraError              (OSError)
+    ├── BoardError, ImageError, BoardNotFoundError (BoardTurnedError), CalibrationFileError,
+    │   FrameSizeError, IntrinsicsError, OutputError                          (ValueError)
+    ├── CameraError              (OSError)
+    └── StateError               (RuntimeError) a call the object's state does not allow
 
 Errors about one point say which, as attributes, so callers need not parse the message:
 ``index`` (the point's row in its array) and ``point_set`` (``"src"`` or ``"dst"``, the set of
@@ -33,8 +35,10 @@ import cv2
 
 __all__ = [
     "ArgumentError",
+    "ArgumentTypeError",
     "BoardError",
     "BoardNotFoundError",
+    "BoardTurnedError",
     "CalibrationFileError",
     "CameraError",
     "DegenerateError",
@@ -49,6 +53,7 @@ __all__ = [
     "OpenCVCompatiblePointAtInfinityError",
     "OutputError",
     "PointAtInfinityError",
+    "StateError",
 ]
 
 
@@ -77,6 +82,11 @@ class ArgumentError(_PointError, ValueError):
     """An argument that cannot be used as given: the wrong shape or dtype, a NaN or infinite
     coordinate, point sets of different lengths, an option value out of its range. Distinct
     from ``HomographyError``, which says the (valid) data determine no homography."""
+
+
+class ArgumentTypeError(ArgumentError, TypeError):
+    """An argument of the wrong type (a bool where a count belongs, a number where a path
+    does): also a ``TypeError``, as Python's own type errors are."""
 
 
 class HomographyError(_PointError, ValueError):
@@ -125,6 +135,11 @@ class BoardNotFoundError(Error, ValueError):
         return (type(self), (str(self), self.diagnostics))
 
 
+class BoardTurnedError(BoardNotFoundError):
+    """The grid found fits the board only turned by 90 degrees (``--cols``/``--rows``
+    swapped?), and no origin marker settles which way it lies."""
+
+
 class CalibrationFileError(Error, ValueError):
     """A calibration file that cannot be loaded: corrupt, truncated, or of another version."""
 
@@ -161,6 +176,11 @@ class FrameSizeError(Error, ValueError):
 
 class CameraError(Error, OSError):
     """A camera, video, stream or image folder that cannot be opened or stops delivering."""
+
+
+class StateError(Error, RuntimeError):
+    """A call the object's state does not allow, such as iterating a Tracker a second time:
+    the program's order is at fault, not an argument."""
 
 
 class IntrinsicsError(Error, ValueError):

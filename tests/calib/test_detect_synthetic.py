@@ -9,8 +9,8 @@ import pytest
 import planarcal
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
-from planarcal.calib.detect import BoardTurnedError, conic_centre_offset, detect_board
-from planarcal.errors import BoardNotFoundError
+from planarcal.calib.detect import conic_centre_offset, detect_board
+from planarcal.errors import BoardNotFoundError, BoardTurnedError
 
 BOARD = synth.PAPER_BOARD
 

@@ -19,8 +19,8 @@ import pytest
 from conftest import RecordProperty
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
-from planarcal.calib.detect import BoardDetection, BoardTurnedError, detect_board
-from planarcal.errors import BoardError
+from planarcal.calib.detect import BoardDetection, detect_board
+from planarcal.errors import BoardError, BoardTurnedError
 
 NAMES = tuple(synth.BOARD_VARIANTS)
 

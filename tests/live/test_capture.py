@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
-from planarcal.errors import ArgumentError, CameraError
+from planarcal.errors import ArgumentError, ArgumentTypeError, CameraError
 from planarcal.live.capture import BACKEND_GRACE_S, Camera
 
 W, H = 80, 64
@@ -289,8 +289,10 @@ def test_empty_folder(tmp_path: Path) -> None:
 def test_bad_arguments(args: tuple[object, ...], kwargs: dict[str, object], error: type) -> None:
     with pytest.raises(error) as info:
         Camera(*args, **kwargs)  # type: ignore[arg-type]
-    if error is ValueError:  # an argument out of range: planarcal's own, still a ValueError
-        assert isinstance(info.value, ArgumentError)
+    # planarcal's own (an ArgumentError), still the ValueError or TypeError Python code expects.
+    assert isinstance(info.value, ArgumentError)
+    if error is TypeError:
+        assert isinstance(info.value, ArgumentTypeError)
 
 
 # -- devices and streams (loopback only) ----------------------------------------------------------

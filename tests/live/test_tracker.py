@@ -26,7 +26,7 @@ import planarcal.live.tracker as tracker_module
 from planarcal import synth
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
-from planarcal.errors import ArgumentError, CameraError, IntrinsicsError
+from planarcal.errors import ArgumentError, CameraError, IntrinsicsError, StateError
 from planarcal.homography import transform_points
 from planarcal.live.capture import Camera
 from planarcal.live.tracker import FrameResult, Tracker
@@ -128,7 +128,7 @@ def test_max_frames_and_a_tracker_iterates_once(calibration: Calibration, video:
     path, _, _ = video
     t = Tracker(calibration, path, max_frames=5)
     assert len(list(t)) == 5
-    with pytest.raises(RuntimeError, match="once"):
+    with pytest.raises(StateError, match="once"):
         list(t)
     with pytest.raises(ArgumentError, match="max_jump_mm"):
         Tracker(calibration, path, max_jump_mm=0)

@@ -57,7 +57,7 @@ from planarcal.calib.grid_search import (
     outer_ring,
     place_board,
 )
-from planarcal.errors import ArgumentError, BoardNotFoundError, DegenerateError
+from planarcal.errors import ArgumentError, BoardNotFoundError, BoardTurnedError, DegenerateError
 from planarcal.homography import estimate_homography, reprojection_errors, transform_points
 from planarcal.images import as_grey
 
@@ -158,11 +158,6 @@ class DetectionDiagnostics:
     """(width, height) px."""
     blobs: tuple[SeenBlobs, ...]
     candidates: tuple[RefusedCandidate, ...]
-
-
-class BoardTurnedError(BoardNotFoundError):
-    """The grid found fits the board only turned by 90 degrees (``--cols``/``--rows``
-    swapped?), and no origin marker settles which way it lies."""
 
 
 def detect_board(

@@ -49,7 +49,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from planarcal.errors import ArgumentError, CameraError, ImageError
+from planarcal.errors import ArgumentError, ArgumentTypeError, CameraError, ImageError
 from planarcal.live.capture_sources import (
     IMAGE_SUFFIXES,
     Backend,
@@ -101,7 +101,7 @@ def _size_text(width: int | None, height: int | None) -> str:
 
 def _check_positive_int(value: object, name: str, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise TypeError(f"{name} must be an int, got {value!r}")
+        raise ArgumentTypeError(f"{name} must be an int, got {value!r}")
     if value < minimum:
         raise ArgumentError(f"{name} must be at least {minimum}, got {value}")
     return int(value)
@@ -132,7 +132,7 @@ def _opener(
     opened, since it may turn out to be a folder), the label for messages, and the function
     that opens it on the worker. TypeError for a source that is none of them."""
     if isinstance(source, bool):
-        raise TypeError(f"source must be a device index, a URL or a path, got {source!r}")
+        raise ArgumentTypeError(f"source must be a device index, a URL or a path, got {source!r}")
     if isinstance(source, int | np.integer):
         index = _check_positive_int(source, "a device index", 0)
         label = f"camera device {index}"
@@ -144,10 +144,10 @@ def _opener(
     if isinstance(source, str | os.PathLike):
         path = os.fspath(source)
         if not isinstance(path, str) or not path:
-            raise TypeError(f"source must be a non-empty str path, got {source!r}")
+            raise ArgumentTypeError(f"source must be a non-empty str path, got {source!r}")
         # "video file ..." or "image folder ..." once opened
         return "file", repr(path), lambda: open_path(path, timeout_ms, width, height, color)
-    raise TypeError(f"source must be a device index, a URL or a path, got {source!r}")
+    raise ArgumentTypeError(f"source must be a device index, a URL or a path, got {source!r}")
 
 
 # ----------------------------------------------------------------------------------------------

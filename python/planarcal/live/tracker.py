@@ -55,7 +55,7 @@ from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal.calib.calibration import Calibration
-from planarcal.errors import ArgumentError, CameraError, FrameSizeError
+from planarcal.errors import ArgumentError, CameraError, FrameSizeError, StateError
 from planarcal.live.capture import Camera, Frame
 from planarcal.live.objects import _detect, detect_objects
 
@@ -281,7 +281,7 @@ class Tracker:
 
     def __iter__(self) -> Iterator[FrameResult]:
         if self._reader is not None:
-            raise RuntimeError("a Tracker can be iterated once")
+            raise StateError("a Tracker can be iterated once")
         self.stats = LoopStats()
         self._reader = threading.Thread(
             target=self._read_loop, name="planarcal-reader", daemon=True
