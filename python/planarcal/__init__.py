@@ -48,6 +48,7 @@ from planarcal.errors import (
     OpenCVCompatiblePointAtInfinityError,
     OutputError,
     PointAtInfinityError,
+    RegistrationError,
     StateError,
 )
 from planarcal.homography import (
@@ -85,6 +86,7 @@ from planarcal.images import load_image
 from planarcal.live.capture import Camera
 from planarcal.live.objects import DetectedObject, detect_objects, locate_objects
 from planarcal.live.tracker import FrameResult, TrackedObject, Tracker
+from planarcal.robot import RobotFrame
 
 # A child forked after the thread pool started must not use it (its threads did not survive
 # the fork): the core then runs every batch on the calling thread.
@@ -132,7 +134,9 @@ __all__ = [
     "OpenCVCompatiblePointAtInfinityError",
     "OutputError",
     "PointAtInfinityError",
+    "RegistrationError",
     "ReprojectionStats",
+    "RobotFrame",
     "RobustMethod",
     "RobustResult",
     "Solver",

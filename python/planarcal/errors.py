@@ -16,6 +16,7 @@ device or a stream failed, not an argument). The Rust bindings raise the classes
     │   └── OpenCVCompatibleError           (also cv2.error)
     │       └── OpenCVCompatiblePointAtInfinityError
     ├── LensModelError           (ValueError) a lens model that cannot be fitted or applied
+    ├── RegistrationError        (ValueError) point pairs that cannot fix the plane-to-robot map
     ├── BoardError, ImageError, BoardNotFoundError (BoardTurnedError), CalibrationFileError,
     │   FrameSizeError, IntrinsicsError, OutputError                          (ValueError)
     ├── CameraError              (OSError)
@@ -53,6 +54,7 @@ __all__ = [
     "OpenCVCompatiblePointAtInfinityError",
     "OutputError",
     "PointAtInfinityError",
+    "RegistrationError",
     "StateError",
 ]
 
@@ -110,6 +112,12 @@ class LensModelError(_PointError, ValueError):
     """A lens-distortion model that cannot be fitted or applied: no image size to centre it
     on, a distortion that folds the image over, a point outside the model's valid radius
     (``index`` names it)."""
+
+
+class RegistrationError(Error, ValueError):
+    """Point pairs (board mm, robot mm) that cannot fix the board-to-robot transform: too few
+    for the model, too clustered or collinear, or a stored registration that does not hold
+    together."""
 
 
 class BoardError(Error, ValueError):

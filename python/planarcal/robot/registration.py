@@ -1,0 +1,279 @@
+"""RobotFrame: the registration of the calibrated plane (board mm) to a robot's base frame
+(robot mm), fitted from touch points, with everything a user needs to trust it or redo it:
+per-point residuals, leave-one-out errors, the touches named as outliers, the handedness, and
+with z the plane's height and tilt in the robot frame."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, cast
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from planarcal import arguments
+from planarcal.errors import ArgumentError, CalibrationFileError, RegistrationError
+from planarcal.robot.outliers import default_threshold, find_outliers, leave_one_out
+from planarcal.robot.plane_height import PlaneHeight, fit_plane_height, tilt_warnings
+from planarcal.robot.summary import registration_summary
+from planarcal.robot.transform_fit import (
+    F64,
+    MODELS,
+    Model,
+    apply,
+    check_geometry,
+    fit_either_hand,
+)
+
+# What to_dict writes and from_dict reads.
+FORMAT = "planarcal.robot_frame"
+VERSION = 1
+# How far a stored transform may differ from the refit of its stored pairs (relative).
+STORED_TRANSFORM_TOLERANCE = 1e-6
+
+
+def _frozen(a: ArrayLike) -> F64:
+    out = np.array(a, dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class RobotFrame:
+    """A fitted map board mm -> robot mm (use ``RobotFrame.fit``).
+
+    ``plane_to_robot`` and ``robot_to_plane`` are 3 x 3 affine matrices (last row 0 0 1);
+    ``reflected`` says the map mirrors (the board's frame and the robot's are of opposite
+    handedness); ``rotation_deg`` (the angle of the rotation after any mirroring of the board's
+    y axis) and ``scale`` are None for an affine model. Per point (in the order given):
+    ``residuals_mm`` under the fit, ``leave_one_out_mm`` under the fit of the other points
+    used (for a dropped outlier, its error under the fit). ``rms_mm``, ``max_mm`` and
+    ``leave_one_out_rms_mm`` are over the points used. ``outliers`` names the points whose
+    leave-one-out error exceeded ``outlier_threshold_mm``; ``dropped_outliers`` says whether
+    the fit left them out. ``plane`` is the plane's height and tilt when z was given."""
+
+    model: Model
+    reflected: bool
+    plane_to_robot: F64
+    robot_to_plane: F64
+    rotation_deg: float | None
+    scale: float | None
+    plane_mm: F64
+    robot_mm: F64
+    robot_z_mm: F64 | None
+    residuals_mm: F64
+    leave_one_out_mm: F64
+    rms_mm: float
+    max_mm: float
+    leave_one_out_rms_mm: float
+    outliers: tuple[int, ...]
+    dropped_outliers: bool
+    outlier_mm: float | None
+    outlier_threshold_mm: float
+    plane: PlaneHeight | None
+    warnings: tuple[str, ...]
+
+    @classmethod
+    def fit(
+        cls,
+        plane_mm: ArrayLike,
+        robot_mm: ArrayLike,
+        *,
+        model: Model = "rigid",
+        robot_z: ArrayLike | None = None,
+        outlier_mm: float | None = None,
+        drop_outliers: bool = False,
+    ) -> RobotFrame:
+        """The registration fitted to pairs of board points (N, 2) and robot points (N, 2),
+        or (N, 3) with z (or z as ``robot_z``), all in mm. ``outlier_mm`` is the leave-one-out
+        error above which a point is named an outlier (default max(1 mm, 5 x the median));
+        ``drop_outliers`` refits without them. ArgumentError for malformed arguments,
+        RegistrationError for pairs that cannot fix the model."""
+        if model not in MODELS:
+            raise ArgumentError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+        if not isinstance(drop_outliers, bool):
+            raise ArgumentError(f"drop_outliers must be True or False, got {drop_outliers!r}")
+        threshold_given = (
+            None if outlier_mm is None else arguments.positive("outlier_mm", outlier_mm)
+        )
+        plane, robot, z = _pairs(plane_mm, robot_mm, robot_z)
+        check_geometry(plane, robot, model)
+
+        _, reflected_all = fit_either_hand(plane, robot, model)
+        loo_all = leave_one_out(plane, robot, model, reflected_all)
+        threshold = threshold_given if threshold_given is not None else default_threshold(loo_all)
+        outliers = find_outliers(plane, robot, model, threshold)
+
+        used = np.ones(len(plane), dtype=bool)
+        if drop_outliers:
+            used[list(outliers)] = False
+        matrix, reflected = fit_either_hand(plane[used], robot[used], model)
+        residuals = np.hypot(*(apply(matrix, plane) - robot).T)
+        loo = residuals.copy()  # a dropped point's fit is already the fit without it
+        loo[used] = leave_one_out(plane[used], robot[used], model, reflected)
+        rotation_deg, scale = _rotation_and_scale(matrix, model, reflected)
+        height = None if z is None else fit_plane_height(robot[used], z[used])
+        return cls(
+            model=model,
+            reflected=reflected,
+            plane_to_robot=_frozen(matrix),
+            robot_to_plane=_frozen(np.linalg.inv(matrix)),
+            rotation_deg=rotation_deg,
+            scale=scale,
+            plane_mm=_frozen(plane),
+            robot_mm=_frozen(robot),
+            robot_z_mm=None if z is None else _frozen(z),
+            residuals_mm=_frozen(residuals),
+            leave_one_out_mm=_frozen(loo),
+            rms_mm=float(np.sqrt(np.mean(residuals[used] ** 2))),
+            max_mm=float(residuals[used].max()),
+            leave_one_out_rms_mm=float(np.sqrt(np.mean(loo[used] ** 2))),
+            outliers=outliers,
+            dropped_outliers=drop_outliers,
+            outlier_mm=threshold_given,
+            outlier_threshold_mm=threshold,
+            plane=height,
+            warnings=tilt_warnings(height, z is not None),
+        )
+
+    @property
+    def used(self) -> F64:
+        """A boolean mask (N,) of the points the fit used."""
+        mask = np.ones(len(self.plane_mm), dtype=bool)
+        if self.dropped_outliers:
+            mask[list(self.outliers)] = False
+        return cast("F64", mask)
+
+    def to_robot(self, points_mm: ArrayLike) -> F64:
+        """Board points (..., 2) in mm as robot points (..., 2) in mm."""
+        flat, lead = arguments.points("points_mm", points_mm)
+        return apply(self.plane_to_robot, flat).reshape(*lead, 2)
+
+    def to_plane(self, robot_mm: ArrayLike) -> F64:
+        """Robot points (..., 2) in mm as board points (..., 2) in mm."""
+        flat, lead = arguments.points("robot_mm", robot_mm)
+        return apply(self.robot_to_plane, flat).reshape(*lead, 2)
+
+    def summary(self) -> str:
+        """The residual table and the fit's quality in words, with what to do if it is poor."""
+        return registration_summary(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict: the pairs and the options (what from_dict refits), the transform
+        and the fit's measures (what from_dict checks and a reader can see)."""
+
+        def number(x: float) -> float | None:
+            return x if math.isfinite(x) else None
+
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "model": self.model,
+            "outlier_mm": self.outlier_mm,
+            "drop_outliers": self.dropped_outliers,
+            "plane_mm": self.plane_mm.tolist(),
+            "robot_mm": self.robot_mm.tolist(),
+            "robot_z_mm": None if self.robot_z_mm is None else self.robot_z_mm.tolist(),
+            "reflected": self.reflected,
+            "plane_to_robot": self.plane_to_robot.tolist(),
+            "rotation_deg": self.rotation_deg,
+            "scale": self.scale,
+            "residuals_mm": self.residuals_mm.tolist(),
+            "leave_one_out_mm": [number(x) for x in self.leave_one_out_mm.tolist()],
+            "rms_mm": self.rms_mm,
+            "max_mm": self.max_mm,
+            "leave_one_out_rms_mm": number(self.leave_one_out_rms_mm),
+            "outliers": list(self.outliers),
+            "outlier_threshold_mm": self.outlier_threshold_mm,
+            "plane": None if self.plane is None else self.plane.to_dict(),
+            "warnings": list(self.warnings),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "the registration") -> RobotFrame:
+        """The registration a dict from to_dict describes: refitted from its pairs and checked
+        against its stored transform; CalibrationFileError if it is malformed, of another
+        version, or does not hold together."""
+        if not isinstance(data, dict):
+            raise CalibrationFileError(f"{source} is not a registration (not a JSON object)")
+        if data.get("format") != FORMAT or data.get("version") != VERSION:
+            raise CalibrationFileError(
+                f"{source} is not a {FORMAT} version {VERSION} (format "
+                f"{data.get('format')!r}, version {data.get('version')!r})"
+            )
+        try:
+            frame = cls.fit(
+                data["plane_mm"],
+                data["robot_mm"],
+                model=data["model"],
+                robot_z=data["robot_z_mm"],
+                outlier_mm=data["outlier_mm"],
+                drop_outliers=data["drop_outliers"],
+            )
+            stored = np.asarray(data["plane_to_robot"], dtype=np.float64)
+            reflected, outliers = data["reflected"], data["outliers"]
+        except KeyError as e:
+            raise CalibrationFileError(f"{source} is missing the field {e}") from None
+        except (ArgumentError, RegistrationError, TypeError, ValueError) as e:
+            raise CalibrationFileError(f"{source}: {e}") from None
+        tolerance = STORED_TRANSFORM_TOLERANCE * max(1.0, float(np.abs(frame.plane_to_robot).max()))
+        if (
+            stored.shape != (3, 3)
+            or not np.all(np.abs(stored - frame.plane_to_robot) <= tolerance)
+            or reflected != frame.reflected
+            or outliers != list(frame.outliers)
+        ):
+            raise CalibrationFileError(
+                f"{source}: the stored transform, handedness or outliers are not those of its "
+                "point pairs (edited or corrupt)"
+            )
+        return frame
+
+
+def _pairs(
+    plane_mm: ArrayLike, robot_mm: ArrayLike, robot_z: ArrayLike | None
+) -> tuple[F64, F64, F64 | None]:
+    """The board points (N, 2), robot points (N, 2) and z (N,) or None, checked."""
+    plane, lead = arguments.points("plane_mm", plane_mm)
+    if len(lead) != 1:
+        raise ArgumentError(f"plane_mm must have shape (N, 2), got {np.shape(plane_mm)}")
+    try:
+        robot_all = np.asarray(robot_mm, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ArgumentError("robot_mm must be an array of (x, y) or (x, y, z) points") from None
+    if robot_all.ndim != 2 or robot_all.shape[1] not in (2, 3):
+        raise ArgumentError(f"robot_mm must have shape (N, 2) or (N, 3), got {robot_all.shape}")
+    robot, _ = arguments.points("robot_mm", robot_all[:, :2])
+    z = robot_all[:, 2] if robot_all.shape[1] == 3 else None
+    if robot_z is not None:
+        if z is not None:
+            raise ArgumentError("z given twice: as robot_mm's third column and as robot_z")
+        try:
+            z = np.asarray(robot_z, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ArgumentError("robot_z must be an array of N heights") from None
+        if z.shape != (len(robot),):
+            raise ArgumentError(f"robot_z must have shape ({len(robot)},), got {z.shape}")
+    if z is not None and not np.isfinite(z).all():
+        k = int(np.flatnonzero(~np.isfinite(z))[0])
+        raise ArgumentError(f"robot z of point {k} is not finite: {z[k]!r}", k)
+    if len(plane) != len(robot):
+        raise ArgumentError(
+            f"plane_mm and robot_mm must pair up: {len(plane)} board points, "
+            f"{len(robot)} robot points"
+        )
+    return plane, robot, z
+
+
+def _rotation_and_scale(
+    matrix: F64, model: Model, reflected: bool
+) -> tuple[float | None, float | None]:
+    # The linear part is scale x R(theta) x diag(1, -1 if reflected): undo the mirror, read
+    # the angle of the rotation left.
+    if model == "affine":
+        return None, None
+    linear = matrix[:2, :2] @ np.diag([1.0, -1.0 if reflected else 1.0])
+    angle = math.degrees(math.atan2(linear[1, 0], linear[0, 0]))
+    scale = float(math.hypot(linear[0, 0], linear[1, 0]))
+    return angle, (1.0 if model == "rigid" else scale)

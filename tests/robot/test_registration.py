@@ -1,0 +1,339 @@
+"""RobotFrame: the board-to-robot registration recovers known transforms (rigid, similarity,
+affine, mirrored or not, with and without a robot's touch noise), names a touch on the wrong
+dot, refuses points that cannot fix the transform, maps both ways, survives its dict form,
+and warns of a tilted plane."""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.typing import NDArray
+
+import planarcal as pc
+from planarcal.robot import MINIMAL_POINTS, MODELS, Model, RobotFrame
+from synthetic import examples
+
+F64 = NDArray[np.float64]
+
+# A robot's repeatability (mm): the noise of a touch.
+TOUCH_NOISE_MM = 0.05
+
+
+def _grid(cols: int = 5, rows: int = 4, pitch: float = 15.0) -> F64:
+    """Dot centres of a board (mm): x along a row, y down a column."""
+    xs, ys = np.meshgrid(np.arange(cols) * pitch, np.arange(rows) * pitch)
+    out: F64 = np.c_[xs.ravel(), ys.ravel()]
+    return out
+
+
+def _transform(rng: np.random.Generator, model: Model, reflected: bool) -> F64:
+    """A random plane-to-robot matrix of the model, mirrored as asked."""
+    angle = rng.uniform(-math.pi, math.pi)
+    c, s = math.cos(angle), math.sin(angle)
+    linear = np.array([[c, -s], [s, c]]) @ np.diag([1.0, -1.0 if reflected else 1.0])
+    if model == "similarity":
+        linear = rng.uniform(0.8, 1.25) * linear
+    elif model == "affine":
+        # A shear and unequal scales, keeping the handedness.
+        linear = linear @ np.array(
+            [[rng.uniform(0.8, 1.25), rng.uniform(-0.2, 0.2)], [0.0, rng.uniform(0.8, 1.25)]]
+        )
+    m = np.eye(3)
+    m[:2, :2] = linear
+    m[:2, 2] = rng.uniform(-600, 600, 2)
+    return m
+
+
+def _map(m: F64, points: F64) -> F64:
+    out: F64 = points @ m[:2, :2].T + m[:2, 2]
+    return out
+
+
+def _scene(seed: int, model: Model, reflected: bool, noise: float) -> tuple[F64, F64, F64]:
+    """Board points (a random layout), their robot points with touch noise, and the truth."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(MINIMAL_POINTS[model] + 4, 20))
+    plane = rng.uniform([0, 0], [250, 180], (n, 2)) + rng.uniform(-300, 300, 2)
+    truth = _transform(rng, model, reflected)
+    robot = _map(truth, plane) + rng.normal(0, noise, (n, 2))
+    return plane, robot, truth
+
+
+cases = given(
+    seed=st.integers(0, 2**32 - 1),
+    model=st.sampled_from(MODELS),
+    reflected=st.booleans(),
+)
+
+
+@settings(max_examples=examples(60))
+@cases
+def test_exact_pairs_recover_the_transform(seed: int, model: Model, reflected: bool) -> None:
+    plane, robot, truth = _scene(seed, model, reflected, 0.0)
+    frame = RobotFrame.fit(plane, robot, model=model)
+    assert frame.reflected is reflected
+    assert frame.model == model
+    assert frame.max_mm < 1e-9
+    np.testing.assert_allclose(frame.plane_to_robot, truth, atol=1e-9)
+    np.testing.assert_allclose(frame.plane_to_robot @ frame.robot_to_plane, np.eye(3), atol=1e-12)
+    assert frame.outliers == ()
+    if model == "affine":
+        assert frame.rotation_deg is None and frame.scale is None
+    else:
+        assert frame.rotation_deg is not None and frame.scale is not None
+        # The stated angle and scale rebuild the matrix: scale R(angle) diag(1, +-1).
+        a = math.radians(frame.rotation_deg)
+        rebuilt = (
+            frame.scale
+            * np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+            @ np.diag([1.0, -1.0 if reflected else 1.0])
+        )
+        np.testing.assert_allclose(rebuilt, truth[:2, :2], atol=1e-9)
+        if model == "rigid":
+            assert frame.scale == 1.0
+
+
+@settings(max_examples=examples(60))
+@cases
+def test_noisy_touches_give_residuals_of_the_noise(
+    seed: int, model: Model, reflected: bool
+) -> None:
+    plane, robot, truth = _scene(seed, model, reflected, TOUCH_NOISE_MM)
+    frame = RobotFrame.fit(plane, robot, model=model)
+    assert frame.reflected is reflected
+    assert 0.2 * TOUCH_NOISE_MM < frame.rms_mm < 2.5 * TOUCH_NOISE_MM
+    # The fit is better than one touch where the touches were.
+    assert np.abs(frame.to_robot(plane) - _map(truth, plane)).max() < 4 * TOUCH_NOISE_MM
+    # A point left out is predicted worse than it is fitted.
+    assert frame.leave_one_out_rms_mm > frame.rms_mm
+    if model == "affine":
+        # Linear least squares: each point's leave-one-out error is its residual / (1 - h).
+        assert np.all(frame.leave_one_out_mm >= frame.residuals_mm - 1e-12)
+    assert frame.outliers == ()
+
+
+@settings(max_examples=examples(40))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    model=st.sampled_from(MODELS),
+    reflected=st.booleans(),
+    data=st.data(),
+)
+def test_a_touch_on_the_wrong_dot_is_named(
+    seed: int, model: Model, reflected: bool, data: st.DataObject
+) -> None:
+    rng = np.random.default_rng(seed)
+    plane = _grid()
+    truth = _transform(rng, model, reflected)
+    robot = _map(truth, plane) + rng.normal(0, TOUCH_NOISE_MM, plane.shape)
+    wrong = data.draw(st.integers(0, len(plane) - 1))
+    neighbour = wrong + 1 if (wrong + 1) % 5 else wrong - 1  # the next dot in its row
+    robot[wrong] = _map(truth, plane[neighbour : neighbour + 1])[0]
+
+    kept = RobotFrame.fit(plane, robot, model=model)
+    assert kept.outliers == (wrong,)
+    assert "outlier" in kept.summary() and f"Point(s) {wrong}:" in kept.summary()
+    assert kept.used.all()
+
+    dropped = RobotFrame.fit(plane, robot, model=model, drop_outliers=True)
+    assert dropped.outliers == (wrong,)
+    assert not dropped.used[wrong] and dropped.used.sum() == len(plane) - 1
+    assert dropped.rms_mm < 2.5 * TOUCH_NOISE_MM
+    # The dropped point's error is its distance from the fit of the others: a dot's pitch.
+    assert dropped.residuals_mm[wrong] == pytest.approx(15.0 * (kept.scale or 1.0), rel=0.3)
+
+
+def test_two_swapped_touches_are_both_named() -> None:
+    rng = np.random.default_rng(7)
+    plane = _grid()
+    truth = _transform(rng, "rigid", True)
+    robot = _map(truth, plane) + rng.normal(0, TOUCH_NOISE_MM, plane.shape)
+    robot[[3, 12]] = robot[[12, 3]]
+    frame = RobotFrame.fit(plane, robot, drop_outliers=True)
+    assert frame.outliers == (3, 12)
+    assert frame.rms_mm < 2.5 * TOUCH_NOISE_MM
+
+
+def test_an_explicit_outlier_threshold_is_used() -> None:
+    rng = np.random.default_rng(3)
+    plane = _grid()
+    robot = _map(_transform(rng, "rigid", True), plane)
+    robot[4] += [0.4, 0.0]  # a 0.4 mm slip: below the default floor of 1 mm
+    assert RobotFrame.fit(plane, robot).outliers == ()
+    frame = RobotFrame.fit(plane, robot, outlier_mm=0.2)
+    assert frame.outliers == (4,)
+    assert frame.outlier_threshold_mm == 0.2
+
+
+# -- refusals --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_too_few_points_are_refused_saying_how_many(model: Model) -> None:
+    n = MINIMAL_POINTS[model]
+    plane = _grid()[[0, 6, 13, 19]][:n]
+    with pytest.raises(pc.RegistrationError, match=rf"at least {n + 1} point pairs.*got {n}"):
+        RobotFrame.fit(plane, plane + 100.0, model=model)
+    RobotFrame.fit(
+        _grid()[[0, 6, 13, 19]][: n + 1], _grid()[[0, 6, 13, 19]][: n + 1] + 100.0, model=model
+    )
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_nearly_coincident_points_are_refused(model: Model) -> None:
+    rng = np.random.default_rng(0)
+    plane = np.array([50.0, 40.0]) + rng.uniform(-0.5, 0.5, (6, 2))
+    with pytest.raises(pc.RegistrationError, match="too clustered"):
+        RobotFrame.fit(plane, plane + 200.0, model=model)
+    # Robot points that do not move are as bad.
+    with pytest.raises(pc.RegistrationError, match="robot points are too clustered"):
+        RobotFrame.fit(_grid(), np.full((20, 2), 300.0) + rng.normal(0, 0.01, (20, 2)), model=model)
+
+
+def test_collinear_points_are_refused_for_affine_only() -> None:
+    plane = np.c_[np.arange(6) * 20.0, np.arange(6) * 10.0 + 5.0]
+    robot = plane @ np.array([[0.0, -1.0], [-1.0, 0.0]]) + [400.0, 100.0]
+    with pytest.raises(pc.RegistrationError, match="collinear"):
+        RobotFrame.fit(plane, robot, model="affine")
+    # A line fixes a rotation and a scale.
+    for model in ("rigid", "similarity"):
+        frame = RobotFrame.fit(plane, robot, model=model)
+        assert frame.max_mm < 1e-9 and frame.reflected
+
+
+def test_bad_arguments_are_argument_errors() -> None:
+    plane = _grid()
+    robot = plane + 100.0
+    bad = robot.copy()
+    bad[7, 1] = np.nan
+    with pytest.raises(pc.ArgumentError, match="point 7") as info:
+        RobotFrame.fit(plane, bad)
+    assert info.value.index == 7
+    bad_plane = plane.copy()
+    bad_plane[2, 0] = np.inf
+    with pytest.raises(pc.ArgumentError, match="point 2"):
+        RobotFrame.fit(bad_plane, robot)
+    with pytest.raises(pc.ArgumentError, match="pair up"):
+        RobotFrame.fit(plane, robot[:-1])
+    with pytest.raises(pc.ArgumentError, match="z of point 3"):
+        RobotFrame.fit(plane, robot, robot_z=np.r_[np.zeros(3), np.nan, np.zeros(16)])
+    with pytest.raises(pc.ArgumentError, match="z given twice"):
+        RobotFrame.fit(plane, np.c_[robot, np.zeros(20)], robot_z=np.zeros(20))
+    with pytest.raises(pc.ArgumentError, match="model"):
+        RobotFrame.fit(plane, robot, model="projective")  # type: ignore[arg-type]
+    with pytest.raises(pc.ArgumentError, match="outlier_mm"):
+        RobotFrame.fit(plane, robot, outlier_mm=-1.0)
+    with pytest.raises(pc.ArgumentError, match=r"\(N, 2\) or \(N, 3\)"):
+        RobotFrame.fit(plane, np.ones((20, 4)))
+    with pytest.raises(ValueError):
+        RobotFrame.fit(plane, robot[:-1])
+
+
+# -- mapping both ways -----------------------------------------------------------------------
+
+
+@settings(max_examples=examples(40))
+@cases
+def test_to_robot_and_to_plane_are_inverse(seed: int, model: Model, reflected: bool) -> None:
+    plane, robot, _ = _scene(seed, model, reflected, TOUCH_NOISE_MM)
+    frame = RobotFrame.fit(plane, robot, model=model)
+    queries = np.random.default_rng(seed).uniform(-500, 500, (7, 2))
+    there = frame.to_robot(queries)
+    assert there.shape == (7, 2)
+    np.testing.assert_allclose(frame.to_plane(there), queries, atol=1e-9)
+    one = frame.to_robot(queries[3])
+    assert one.shape == (2,)
+    np.testing.assert_allclose(one, there[3], atol=1e-12)
+    np.testing.assert_allclose(frame.to_robot(plane), _map(frame.plane_to_robot, plane))
+    with pytest.raises(pc.ArgumentError):
+        frame.to_robot([[1.0, np.nan]])
+
+
+# -- the dict form ---------------------------------------------------------------------------
+
+
+def _fields(frame: RobotFrame) -> dict[str, Any]:
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in vars(frame).items()}
+
+
+@settings(max_examples=examples(20))
+@cases
+def test_the_dict_form_round_trips(seed: int, model: Model, reflected: bool) -> None:
+    plane, robot, _ = _scene(seed, model, reflected, TOUCH_NOISE_MM)
+    robot[0] += [5.0, 0.0]
+    z = np.random.default_rng(seed).normal(20.0, 0.02, len(plane))
+    frame = RobotFrame.fit(plane, np.c_[robot, z], model=model, drop_outliers=True)
+    text = json.dumps(frame.to_dict(), allow_nan=False)
+    back = RobotFrame.from_dict(json.loads(text))
+    assert _fields(back) == _fields(frame)
+
+
+def test_a_bad_dict_is_a_calibration_file_error() -> None:
+    plane = _grid()
+    good = RobotFrame.fit(plane, plane @ np.diag([1.0, -1.0]) + 50.0).to_dict()
+    edited = json.loads(json.dumps(good))
+    edited["plane_to_robot"][0][2] += 0.5
+    for data, message in (
+        ([1, 2], "not a JSON object"),
+        ({**good, "version": 99}, "version"),
+        ({k: v for k, v in good.items() if k != "robot_mm"}, "missing the field 'robot_mm'"),
+        (
+            {**good, "plane_mm": good["plane_mm"][:2], "robot_mm": good["robot_mm"][:2]},
+            "at least 3",
+        ),
+        ({**good, "model": "projective"}, "model"),
+        ({**good, "robot_mm": [[None, 1.0]] * 20}, "point 0"),
+        (edited, "not those of its point pairs"),
+        ({**good, "reflected": False}, "not those of its point pairs"),
+    ):
+        with pytest.raises(pc.CalibrationFileError, match=message):
+            RobotFrame.from_dict(data)
+
+
+# -- the plane's height ----------------------------------------------------------------------
+
+
+def test_a_tilted_plane_is_a_warning_with_its_size() -> None:
+    plane = _grid(6, 5, 40.0)  # 200 x 160 mm
+    robot = plane @ np.diag([1.0, -1.0]) + [300.0, 200.0]
+    tilt = math.radians(0.5)
+    z = 12.0 + math.tan(tilt) * (robot[:, 0] - robot[:, 0].mean())
+    frame = RobotFrame.fit(plane, np.c_[robot, z])
+    assert frame.plane is not None
+    assert frame.plane.tilt_deg == pytest.approx(0.5, abs=1e-9)
+    assert frame.plane.tilt_mm == pytest.approx(200.0 * math.tan(tilt), abs=1e-9)
+    assert frame.plane.height_mm == pytest.approx(12.0, abs=1e-9)
+    assert len(frame.warnings) == 1 and "1.75 mm" in frame.warnings[0]
+    assert "1.75 mm" in frame.summary()
+    # The same heights as robot_z; a level plane gives none.
+    again = RobotFrame.fit(plane, robot, robot_z=z)
+    assert again.plane == frame.plane
+    level = RobotFrame.fit(
+        plane, robot, robot_z=12.0 + np.random.default_rng(0).normal(0, 0.01, 30)
+    )
+    assert level.plane is not None and level.plane.tilt_mm < 0.5 and level.warnings == ()
+    assert RobotFrame.fit(plane, robot).plane is None
+
+
+def test_heights_on_a_line_do_not_claim_a_tilt() -> None:
+    plane = np.c_[np.arange(6) * 20.0, np.zeros(6)]
+    frame = RobotFrame.fit(plane, plane + 100.0, robot_z=np.arange(6.0))
+    assert frame.plane is None
+    assert "line" in frame.warnings[0]
+
+
+def test_the_summary_reads_the_quality() -> None:
+    rng = np.random.default_rng(1)
+    plane = _grid()
+    robot = _map(_transform(rng, "rigid", True), plane) + rng.normal(0, 0.02, plane.shape)
+    text = RobotFrame.fit(plane, robot).summary()
+    assert "Excellent" in text and "mirrored" in text
+    assert len(text.splitlines()) >= len(plane) + 4
+    poor = RobotFrame.fit(plane, robot + rng.normal(0, 2.0, plane.shape)).summary()
+    assert "Poor" in poor
