@@ -149,6 +149,24 @@ def test_a_touch_on_the_wrong_dot_is_named(
     assert dropped.residuals_mm[wrong] == pytest.approx(15.0 * (kept.scale or 1.0), rel=0.3)
 
 
+@pytest.mark.parametrize("model", ["rigid", "similarity"])
+def test_a_wrong_touch_among_few_points_is_named(model: Model) -> None:
+    # Five touches, one on the next dot: every fit that includes it is pulled, so the bar is
+    # set by the others' errors without it.
+    rng = np.random.default_rng(11)
+    plane = _grid()[[0, 4, 10, 15, 19]]
+    truth = _transform(rng, model, True)
+    robot = _map(truth, plane) + rng.normal(0, TOUCH_NOISE_MM, plane.shape)
+    robot[2] = _map(truth, plane[2:3] + np.array([15.0, 0.0]))[0]
+    frame = RobotFrame.fit(plane, robot, model=model)
+    assert frame.outliers == (2,)
+    assert frame.outlier_threshold_mm == 1.0
+    clean = RobotFrame.fit(
+        plane, _map(truth, plane) + rng.normal(0, TOUCH_NOISE_MM, (5, 2)), model=model
+    )
+    assert clean.outliers == ()
+
+
 def test_two_swapped_touches_are_both_named() -> None:
     rng = np.random.default_rng(7)
     plane = _grid()

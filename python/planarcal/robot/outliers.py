@@ -5,11 +5,13 @@ A touch on the wrong dot pulls a least-squares fit towards itself, so its own re
 understates it; refitted without it, the others show how far off it is. The search removes
 the worst point while its leave-one-out error exceeds the threshold and recomputes the others'
 errors without it (a wrong touch also inflates its neighbours' errors), one point at a time,
-so the result does not depend on anything but the data."""
+so the result depends on nothing but the data. The default threshold is set by the others'
+leave-one-out errors without the suspect, so a wrong touch cannot raise its own bar."""
 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planarcal.errors import RegistrationError
 from planarcal.robot.transform_fit import (
@@ -56,28 +58,42 @@ def default_threshold(errors_mm: F64) -> float:
 
 
 def find_outliers(
-    plane_mm: F64, robot_mm: F64, model: Model, threshold_mm: float
-) -> tuple[int, ...]:
-    """The indices (ascending) of the points whose leave-one-out error exceeds threshold_mm,
-    removed worst first; stops while the rest still fix the model with a residual."""
+    plane_mm: F64, robot_mm: F64, model: Model, outlier_mm: float | None
+) -> tuple[tuple[int, ...], float]:
+    """The indices (ascending) of the points whose leave-one-out error exceeds the threshold,
+    and the threshold (mm) the search ended on: ``outlier_mm``, or by default
+    default_threshold of the other points' leave-one-out errors without the suspect (a wrong
+    touch inflates the errors of the fits that include it, so its own presence must not set
+    the bar). The worst point goes first; the search stops while the rest still fix the
+    model with a residual."""
+
+    def bar(keep: NDArray[np.intp]) -> float:
+        if outlier_mm is not None:
+            return outlier_mm
+        p, q = plane_mm[keep], robot_mm[keep]
+        _, reflected = fit_either_hand(p, q, model)
+        return default_threshold(leave_one_out(p, q, model, reflected))
+
     active = np.arange(len(plane_mm))
     removed: list[int] = []
+    threshold: float | None = None
     while len(active) > MINIMAL_POINTS[model] + 1:
         p, q = plane_mm[active], robot_mm[active]
         _, reflected = fit_either_hand(p, q, model)
         errors = leave_one_out(p, q, model, reflected)
         errors[~np.isfinite(errors)] = -1.0  # undetermined is not evidence of a wrong touch
         worst = int(np.argmax(errors))
-        if errors[worst] <= threshold_mm:
-            break
         rest = np.delete(active, worst)
         try:
             check_geometry(plane_mm[rest], robot_mm[rest], model)
         except RegistrationError:
             break
+        threshold = bar(rest)
+        if errors[worst] <= threshold:
+            break
         removed.append(int(active[worst]))
         active = rest
-    return tuple(sorted(removed))
+    return tuple(sorted(removed)), bar(active) if threshold is None else threshold
 
 
 def _determined(plane_mm: F64, robot_mm: F64, model: Model) -> bool:

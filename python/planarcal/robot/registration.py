@@ -7,14 +7,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal.errors import ArgumentError, CalibrationFileError, RegistrationError
-from planarcal.robot.outliers import default_threshold, find_outliers, leave_one_out
+from planarcal.robot.outliers import find_outliers, leave_one_out
 from planarcal.robot.plane_height import PlaneHeight, fit_plane_height, tilt_warnings
 from planarcal.robot.summary import registration_summary
 from planarcal.robot.transform_fit import (
@@ -87,9 +87,10 @@ class RobotFrame:
     ) -> RobotFrame:
         """The registration fitted to pairs of board points (N, 2) and robot points (N, 2),
         or (N, 3) with z (or z as ``robot_z``), all in mm. ``outlier_mm`` is the leave-one-out
-        error above which a point is named an outlier (default max(1 mm, 5 x the median));
-        ``drop_outliers`` refits without them. ArgumentError for malformed arguments,
-        RegistrationError for pairs that cannot fix the model."""
+        error above which a point is named an outlier (default max(1 mm, 5 x the median
+        leave-one-out error of the other points without it); ``drop_outliers`` refits without
+        them. ArgumentError for malformed arguments, RegistrationError for pairs that cannot
+        fix the model."""
         if model not in MODELS:
             raise ArgumentError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
         if not isinstance(drop_outliers, bool):
@@ -100,10 +101,7 @@ class RobotFrame:
         plane, robot, z = _pairs(plane_mm, robot_mm, robot_z)
         check_geometry(plane, robot, model)
 
-        _, reflected_all = fit_either_hand(plane, robot, model)
-        loo_all = leave_one_out(plane, robot, model, reflected_all)
-        threshold = threshold_given if threshold_given is not None else default_threshold(loo_all)
-        outliers = find_outliers(plane, robot, model, threshold)
+        outliers, threshold = find_outliers(plane, robot, model, threshold_given)
 
         used = np.ones(len(plane), dtype=bool)
         if drop_outliers:
@@ -138,12 +136,12 @@ class RobotFrame:
         )
 
     @property
-    def used(self) -> F64:
+    def used(self) -> NDArray[np.bool_]:
         """A boolean mask (N,) of the points the fit used."""
-        mask = np.ones(len(self.plane_mm), dtype=bool)
+        mask = np.ones(len(self.plane_mm), dtype=np.bool_)
         if self.dropped_outliers:
             mask[list(self.outliers)] = False
-        return cast("F64", mask)
+        return mask
 
     def to_robot(self, points_mm: ArrayLike) -> F64:
         """Board points (..., 2) in mm as robot points (..., 2) in mm."""
