@@ -5,6 +5,7 @@ The pipeline: print a ``CircleGridBoard`` (``planarcal board``), take a picture 
 its lens model chosen by leave-one-out, its uncertainty and its report, saved as JSON), then
 locate objects in millimetres (``locate_objects``). ``calibrate_camera`` estimates full camera
 intrinsics from several board views, for objects of known height above the plane.
+``RobotFrame`` registers the plane to a robot's base frame from touch points.
 ``planarcal.synth`` renders scenes with exact truth to test a setup.
 
 Underneath, a Rust core (homography solvers, refinement, batch transforms) with two faces:
