@@ -80,6 +80,9 @@ class TrackedObject:
     std_mm: float
     """The calibration's 1-sigma uncertainty of world_mm (RMS distance, mm)."""
     area_px: float
+    angle_deg: float | None
+    """The part's principal axis in the output frame, degrees in [-90, 90); None where the
+    part is too round for an axis to mean anything."""
 
 
 @dataclasses.dataclass(frozen=True, slots=True, eq=False)
@@ -99,6 +102,11 @@ class FrameResult:
     std_mm: F64
     """The calibration's 1-sigma uncertainty of each world_mm (RMS distance, mm)."""
     areas_px: F64
+    angles_deg: F64
+    """Each part's principal axis in the output frame, degrees in [-90, 90); NaN where the
+    part is too round for an axis to mean anything."""
+    coords: str
+    """The frame of reference of world_mm and angles_deg: "board" or "robot"."""
 
     @property
     def objects(self) -> tuple[TrackedObject, ...]:
@@ -113,14 +121,23 @@ class FrameResult:
                 map(tuple, self.world_mm[order].tolist()),
                 self.std_mm[order].tolist(),
                 self.areas_px[order].tolist(),
+                [a if math.isfinite(a) else None for a in self.angles_deg[order].tolist()],
             )
         )
 
     def to_json(self) -> str:
-        """One compact JSON line (no newline): frame, t, and each object's id, px, mm,
-        std_mm, by ID (positions to 1e-3 px and 1e-4 mm)."""
+        """One compact JSON line (no newline): frame, t, coords (the frame of reference), and
+        each object's id, px, mm, std_mm, angle_deg (null: too round), by ID (positions to
+        1e-3 px and 1e-4 mm, angles to 1e-2 degree)."""
         return _core.frame_json(
-            self.index, self.timestamp, self.ids, self.centroids_px, self.world_mm, self.std_mm
+            self.index,
+            self.timestamp,
+            self.ids,
+            self.centroids_px,
+            self.world_mm,
+            self.std_mm,
+            self.angles_deg,
+            self.coords,
         )
 
 
@@ -335,7 +352,8 @@ class Tracker:
         t2 = time.perf_counter()
         stage["map"] += t2 - t1
         ids = self._tracks.update(mm)
-        result = FrameResult(index, stamp, ids, px, mm, std, found.areas)
+        angles = np.full(len(px), np.nan)  # issue 14: each part's angle
+        result = FrameResult(index, stamp, ids, px, mm, std, found.areas, angles, "board")
         stage["track"] += time.perf_counter() - t2
         return result
 

@@ -71,14 +71,16 @@ impl Tracks {
     }
 }
 
-/// frame_json(index, timestamp, ids, centroids_px, world_mm, std_mm)
+/// frame_json(index, timestamp, ids, centroids_px, world_mm, std_mm, angles_deg, coords)
 /// --
 ///
-/// One frame's compact JSON line (no newline): {"frame", "t", "objects": [{"id", "px",
-/// "mm", "std_mm"}, ...]}, the objects by ID (ids: int64 (n,); centroids_px, world_mm:
-/// n x 2; std_mm: n), positions to 1e-3 px and 1e-4 mm, std to 1e-5 mm, the time to the
-/// microsecond; a value that is not finite is written as null.
+/// One frame's compact JSON line (no newline): {"frame", "t", "coords", "objects": [{"id",
+/// "px", "mm", "std_mm", "angle_deg"}, ...]}, the objects by ID (ids: int64 (n,);
+/// centroids_px, world_mm: n x 2; std_mm, angles_deg: n; coords: the frame of reference
+/// of mm and angle_deg), positions to 1e-3 px and 1e-4 mm, std to 1e-5 mm, angles to
+/// 1e-2 degree, the time to the microsecond; a value that is not finite is written as null.
 #[pyfunction]
+#[allow(clippy::too_many_arguments)] // one per field of the line, as the loop holds them
 pub fn frame_json(
     index: i64,
     timestamp: f64,
@@ -86,6 +88,8 @@ pub fn frame_json(
     centroids_px: &Bound<'_, PyAny>,
     world_mm: &Bound<'_, PyAny>,
     std_mm: &Bound<'_, PyAny>,
+    angles_deg: &Bound<'_, PyAny>,
+    coords: &str,
 ) -> PyResult<String> {
     let ids = ids.as_slice().map_err(|e| invalid(format!("ids: {e}")))?;
     let (px, mm) = (
@@ -93,6 +97,7 @@ pub fn frame_json(
         points2(world_mm, "world_mm")?,
     );
     let std = f64_array(std_mm, "std_mm")?;
+    let angles = f64_array(angles_deg, "angles_deg")?;
     FrameObjects {
         index,
         time: timestamp,
@@ -100,6 +105,8 @@ pub fn frame_json(
         centroids_px: px.as_points(),
         world_mm: mm.as_points(),
         std_mm: std.values(),
+        angles_deg: angles.values(),
+        coords,
     }
     .json_line()
     .map_err(|e| invalid(e.to_string()))
