@@ -206,6 +206,7 @@ def measure_contours(
     NDArray[np.float64],
     NDArray[np.int64],
     list[NDArray[np.float64]],
+    NDArray[np.float64],
 ]: ...
 def frame_json(
     index: int,

@@ -24,14 +24,18 @@ def scene_contours(seed: int = 3) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
 
 def test_traced_measures_are_opencvs_moments_and_bounding_boxes() -> None:
     u8, contours = scene_contours()
-    index, area, centroid, bbox, outlines = _core.measure_contours(
+    index, area, centroid, bbox, outlines, moments = _core.measure_contours(
         u8, contours, MIN_AREA, MAX_AREA, keep_border=True, subpixel=False
     )
     assert len(index) >= 5
+    assert moments.shape == (len(index), 3) and moments.dtype == np.float64
     for k, i in enumerate(index):
         m = cv2.moments(contours[i])
         assert area[k] == pytest.approx(m["m00"], rel=1e-12)
         assert centroid[k] == pytest.approx([m["m10"] / m["m00"], m["m01"] / m["m00"]], abs=1e-9)
+        # The enclosed area's central moments (Green's theorem), as OpenCV's over its area.
+        central = np.array([m["mu20"], m["mu11"], m["mu02"]]) / m["m00"]
+        np.testing.assert_allclose(moments[k], central, rtol=1e-9, atol=1e-9)
         assert tuple(bbox[k]) == cv2.boundingRect(contours[i])
         np.testing.assert_array_equal(outlines[k], contours[i].reshape(-1, 2))
     # Every contour OpenCV measures inside the limits is there, none twice.

@@ -107,6 +107,9 @@ class Found(NamedTuple):
     bboxes: NDArray[np.int64]
     """(n, 4): x, y, width, height."""
     outlines: list[F64]
+    moments: F64
+    """(n, 3): the central second moments of each outline's enclosed area over that area,
+    [mu20, mu11, mu02] / area, px^2 (the part's principal axis: see part_angle)."""
 
 
 def _detect(
@@ -145,11 +148,11 @@ def _detect(
     contours, _ = cv2.findContours(edges, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     # Area and border filters, sub-pixel outlines and centroids, in reading order: one call
     # into the core.
-    _, areas, centroids, bboxes, traced = _core.measure_contours(
+    _, areas, centroids, bboxes, traced, moments = _core.measure_contours(
         u8, contours, min_area, max_area, keep_border, subpixel, outlines
     )
     if keep_mask is None and not exclude_polygons:
-        return Found(centroids, areas, bboxes, traced)
+        return Found(centroids, areas, bboxes, traced, moments)
     keep = np.ones(len(areas), dtype=bool)
     if keep_mask is not None and len(areas):
         col = np.clip(centroids[:, 0].astype(np.int64), 0, w - 1)
@@ -165,7 +168,7 @@ def _detect(
     kept = np.flatnonzero(keep)
     kept = kept[_core.reading_order(centroids[kept], bboxes[kept, 3])]
     kept_outlines = [traced[i] for i in kept] if outlines else []
-    return Found(centroids[kept], areas[kept], bboxes[kept], kept_outlines)
+    return Found(centroids[kept], areas[kept], bboxes[kept], kept_outlines, moments[kept])
 
 
 # The closing that joins an outline's small gaps.

@@ -4,11 +4,12 @@
 //! Each contour (whole-pixel points, as OpenCV's findContours traces them) is kept or dropped
 //! by its enclosed area and by whether it touches the frame's border; a kept contour's points
 //! are moved to the grey-level edge (`outline`, on a sigma-1 smoothing of the object's own
-//! region, `smooth`), and its area and centroid are those of the refined outline. The objects
+//! region, `smooth`), and its area, centroid and central second moments (its principal axis)
+//! are those of the refined outline. The objects
 //! come in reading order (`reading_order`), which is how their IDs are numbered.
 
 use crate::image::{GreyU8, Rect};
-use crate::outline::{area_centroid, refine_outline, Grey, MIN_POINTS};
+use crate::outline::{area_centroid, central_moments, refine_outline, Grey, MIN_POINTS};
 use crate::smooth::gaussian_region;
 use crate::Point;
 
@@ -34,6 +35,9 @@ pub struct MeasuredObject {
     /// Enclosed area, px^2, and its centroid, of the (refined) outline.
     pub area: f64,
     pub centroid: Point,
+    /// The enclosed area's central second moments over its area, [mu20, mu11, mu02] / area,
+    /// px^2 (`central_moments`): the part's principal axis and how elongated it is.
+    pub moments: [f64; 3],
     /// The traced contour's bounding box: x, y, width, height (OpenCV's boundingRect).
     pub bbox: [i64; 4],
     pub outline: Vec<Point>,
@@ -100,12 +104,16 @@ fn measure_one(
         contour: index,
         area,
         centroid,
+        moments: [0.0; 3],
         bbox,
         outline: traced,
     };
     if filter.subpixel && contour.len() >= MIN_POINTS {
         refine(image, &mut object, buffers);
     }
+    // Of the outline as it ends (refined, or traced where it could not be): translation
+    // does not change central moments, so the region's coordinates would do as well.
+    object.moments = central_moments(&object.outline);
     Some(object)
 }
 
@@ -159,7 +167,8 @@ fn bounding_box(contour: &[[i32; 2]]) -> [i64; 4] {
     [x0, y0, x1 - x0 + 1, y1 - y0 + 1]
 }
 
-/// The object's outline moved to its edge, with the area and centroid it then encloses; left
+/// The object's outline moved to its edge, with the area and centroid it then encloses (its
+/// moments are taken by the caller); left
 /// as traced when its region is empty (a contour off the frame).
 fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, buffers: &mut (Vec<f32>, Vec<f32>)) {
     let (region, scratch) = buffers;
@@ -255,6 +264,11 @@ mod tests {
         assert!((o.centroid[0] - c[0]).abs() < 0.03, "{:?}", o.centroid);
         assert!((o.centroid[1] - c[1]).abs() < 0.03, "{:?}", o.centroid);
         assert!((o.area / (std::f64::consts::PI * r * r) - 1.0).abs() < 0.03);
+        // A disc's moments: r^2 / 4 each way, none across (no axis).
+        let [m20, m11, m02] = o.moments;
+        assert!((m20 / (r * r / 4.0) - 1.0).abs() < 0.03, "{:?}", o.moments);
+        assert!((m20 - m02).abs() < 0.01 * m20 && m11.abs() < 0.01 * m20);
+        assert_eq!(o.moments, crate::outline::central_moments(&o.outline));
         assert_eq!(o.outline.len(), ring.len());
         // The traced box, as OpenCV's boundingRect gives it.
         let xs = ring.iter().map(|p| p[0]);
@@ -276,6 +290,57 @@ mod tests {
         let (area, centre) = area_centroid(&traced);
         assert_eq!((plain[0].area, plain[0].centroid), (area, centre));
         assert!(plain[0].area > o.area);
+    }
+
+    #[test]
+    fn an_ellipse_s_axis_is_found_at_its_angle() {
+        // A 2:1 ellipse (semi-axes 24 and 12 px) at 30 degrees from +x towards +y, its edge
+        // a smooth ramp; the traced chain a pixel outside it.
+        let (w, h, c) = (100, 90, [50.4, 44.7]);
+        let (a, b, t) = (24.0, 12.0, 30f64.to_radians());
+        let (s, co) = t.sin_cos();
+        let local = |x: f64, y: f64| {
+            let (dx, dy) = (x - c[0], y - c[1]);
+            (co * dx + s * dy, -s * dx + co * dy)
+        };
+        let px: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (u, v) = local((i % w) as f64, (i / w) as f64);
+                // Distance to the edge to first order: the implicit function over its gradient.
+                let f = (u / a).powi(2) + (v / b).powi(2) - 1.0;
+                let g = 2.0 * (u * u / a.powi(4) + v * v / b.powi(4)).sqrt();
+                let d = f / g.max(1e-9);
+                (60.0 + 120.0 / (1.0 + (d / 0.7).exp())).round() as u8
+            })
+            .collect();
+        let image = GreyU8 {
+            pixels: &px,
+            width: w,
+            height: h,
+        };
+        let mut ring: Vec<[i32; 2]> = (0..600)
+            .map(|k| {
+                let q = k as f64 / 600.0 * std::f64::consts::TAU;
+                let (u, v) = ((a + 1.0) * q.cos(), (b + 1.0) * q.sin());
+                [
+                    (c[0] + co * u - s * v).round() as i32,
+                    (c[1] + s * u + co * v).round() as i32,
+                ]
+            })
+            .collect();
+        ring.dedup();
+        if ring.first() == ring.last() {
+            ring.pop();
+        }
+        let o = &measure_contours(image, &[&ring], &all())[0];
+        let [m20, m11, m02] = o.moments;
+        let axis = 0.5 * (2.0 * m11).atan2(m20 - m02);
+        assert!((axis.to_degrees() - 30.0).abs() < 0.1, "{:?}", o.moments);
+        // Variances a^2 / 4 and b^2 / 4 (the outline a little inside the edge).
+        let half = (0.25 * (m20 - m02).powi(2) + m11 * m11).sqrt();
+        let mean = 0.5 * (m20 + m02);
+        assert!(((mean + half) / (a * a / 4.0) - 1.0).abs() < 0.02);
+        assert!(((mean - half) / (b * b / 4.0) - 1.0).abs() < 0.02);
     }
 
     #[test]

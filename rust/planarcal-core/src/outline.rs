@@ -292,6 +292,44 @@ pub fn area_centroid(polygon: &[Point]) -> (f64, Point) {
     ((area).abs(), [cx / (6.0 * area), cy / (6.0 * area)])
 }
 
+/// The central second moments of the area a closed polygon encloses, over that area:
+/// [mu20, mu11, mu02] / area, in the polygon's units squared (px^2), by Green's theorem over
+/// its edges (the area's own moments, as OpenCV's cv2.moments gives them for a contour, not
+/// the scatter of its vertices, which would weigh a side by how densely it is sampled). The
+/// same for either winding. Zeros for a polygon enclosing no area (a point or a line: no
+/// axis to speak of).
+pub fn central_moments(polygon: &[Point]) -> [f64; 3] {
+    let n = polygon.len();
+    if n < 3 {
+        return [0.0; 3];
+    }
+    // About the vertices' mean: the sums then do not cancel digits the polygon's position
+    // in the image would cost (a part 1000 px from the origin, 20 px across).
+    let k = n as f64;
+    let mx = polygon.iter().map(|p| p[0]).sum::<f64>() / k;
+    let my = polygon.iter().map(|p| p[1]).sum::<f64>() / k;
+    let (mut a, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (x, y) = (polygon[i][0] - mx, polygon[i][1] - my);
+        let next = polygon[if i + 1 < n { i + 1 } else { 0 }];
+        let (xn, yn) = (next[0] - mx, next[1] - my);
+        let cross = x * yn - xn * y;
+        a += cross;
+        sx += (x + xn) * cross;
+        sy += (y + yn) * cross;
+        sxx += (x * x + x * xn + xn * xn) * cross;
+        syy += (y * y + y * yn + yn * yn) * cross;
+        sxy += (x * yn + 2.0 * x * y + 2.0 * xn * yn + xn * y) * cross;
+    }
+    if !(a != 0.0 && a.is_finite()) {
+        return [0.0; 3];
+    }
+    // Twice the signed area; the raw moments over the area: the winding's sign cancels.
+    let (cx, cy) = (sx / (3.0 * a), sy / (3.0 * a));
+    let (xx, xy, yy) = (sxx / (6.0 * a), sxy / (12.0 * a), syy / (6.0 * a));
+    [xx - cx * cx, xy - cx * cy, yy - cy * cy]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -410,5 +448,104 @@ mod tests {
         let square = [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]];
         let (a, c) = area_centroid(&square);
         assert_eq!((a, c), (4.0, [1.0, 1.0]));
+    }
+
+    /// The moments' principal axis, degrees in [-90, 90), from +x towards +y.
+    fn axis_deg(m: [f64; 3]) -> f64 {
+        let a = 0.5 * (2.0 * m[1]).atan2(m[0] - m[2]).to_degrees();
+        if a >= 90.0 {
+            a - 180.0
+        } else {
+            a
+        }
+    }
+
+    /// `local` turned by `deg` and moved to `at`.
+    fn placed(local: &[Point], deg: f64, at: Point) -> Vec<Point> {
+        let (s, c) = deg.to_radians().sin_cos();
+        local
+            .iter()
+            .map(|p| [at[0] + c * p[0] - s * p[1], at[1] + s * p[0] + c * p[1]])
+            .collect()
+    }
+
+    #[test]
+    fn a_turned_rectangle_has_its_known_moments_and_axis() {
+        // L x W: variances L^2 / 12 along its length, W^2 / 12 across, far from the origin.
+        let (l, w) = (30.0, 12.0);
+        let local = [
+            [-l / 2.0, -w / 2.0],
+            [l / 2.0, -w / 2.0],
+            [l / 2.0, w / 2.0],
+            [-l / 2.0, w / 2.0],
+        ];
+        for deg in [-89.0, -60.0, -12.5, 0.0, 33.0, 45.0, 71.0] {
+            let poly = placed(&local, deg, [1500.25, 900.5]);
+            let m = central_moments(&poly);
+            let (s, c) = f64::to_radians(deg).sin_cos();
+            let (big, small) = (l * l / 12.0, w * w / 12.0);
+            let want = [
+                big * c * c + small * s * s,
+                (big - small) * s * c,
+                big * s * s + small * c * c,
+            ];
+            for (got, want) in m.iter().zip(want) {
+                assert!((got - want).abs() < 1e-9, "{deg}: {m:?} {want}");
+            }
+            assert!((axis_deg(m) - deg).abs() < 1e-9, "{deg}");
+            // Clockwise, the same.
+            let mut back = poly.clone();
+            back.reverse();
+            let r = central_moments(&back);
+            assert!(r.iter().zip(m).all(|(a, b)| (a - b).abs() < 1e-9));
+        }
+    }
+
+    #[test]
+    fn an_ellipse_polygon_has_its_axis_and_a_disc_none() {
+        // A 2:1 ellipse (semi-axes 20, 10) in 720 vertices: variances a^2 / 4, b^2 / 4.
+        let ellipse: Vec<Point> = (0..720)
+            .map(|k| {
+                let t = k as f64 / 720.0 * std::f64::consts::TAU;
+                [20.0 * t.cos(), 10.0 * t.sin()]
+            })
+            .collect();
+        for deg in [-75.0, -30.0, 10.0, 88.0] {
+            let m = central_moments(&placed(&ellipse, deg, [300.0, 200.0]));
+            let (l1, l2) = eigen(m);
+            assert!((l1 / 100.0 - 1.0).abs() < 1e-4 && (l2 / 25.0 - 1.0).abs() < 1e-4);
+            assert!((axis_deg(m) - deg).abs() < 1e-9, "{deg}: {m:?}");
+        }
+        // A disc's (and a regular polygon's) moments are isotropic: no axis.
+        let disc: Vec<Point> = (0..360)
+            .map(|k| {
+                let t = k as f64 / 360.0 * std::f64::consts::TAU;
+                [50.0 + 15.0 * t.cos(), 40.0 + 15.0 * t.sin()]
+            })
+            .collect();
+        let m = central_moments(&disc);
+        assert!((m[0] - m[2]).abs() < 1e-9 && m[1].abs() < 1e-9, "{m:?}");
+        assert!((m[0] / (15.0 * 15.0 / 4.0) - 1.0).abs() < 1e-3);
+    }
+
+    /// The eigenvalues of [[m0, m1], [m1, m2]], largest first.
+    fn eigen(m: [f64; 3]) -> (f64, f64) {
+        let (mean, half) = (
+            0.5 * (m[0] + m[2]),
+            (0.25 * (m[0] - m[2]).powi(2) + m[1] * m[1]).sqrt(),
+        );
+        (mean + half, mean - half)
+    }
+
+    #[test]
+    fn degenerate_polygons_have_zero_moments() {
+        assert_eq!(central_moments(&[]), [0.0; 3]);
+        assert_eq!(central_moments(&[[1.0, 2.0], [3.0, 4.0]]), [0.0; 3]);
+        let line = [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]];
+        assert_eq!(central_moments(&line), [0.0; 3]);
+        assert_eq!(
+            central_moments(&[[f64::NAN, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+            [0.0; 3]
+        );
     }
 }

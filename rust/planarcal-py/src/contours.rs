@@ -12,29 +12,33 @@ use pyo3::types::PyList;
 use crate::convert::{f64_array, points2, u8_image};
 use crate::errors::invalid;
 
-/// The objects' values, as NumPy arrays (index, area, centroid, bbox) and a list of outlines.
+/// The objects' values, as NumPy arrays (index, area, centroid, bbox), a list of outlines
+/// and their moments.
 type Measured<'py> = (
     Bound<'py, PyAny>,
     Bound<'py, PyAny>,
     Bound<'py, PyAny>,
     Bound<'py, PyAny>,
     Bound<'py, PyList>,
+    Bound<'py, PyAny>,
 );
 
 /// measure_contours(grey, contours, min_area, max_area, keep_border=False, subpixel=True,
 ///                  outlines=True)
 /// --
 ///
-/// (index, area, centroid, bbox, outlines) of the objects among `contours`, in reading order
+/// (index, area, centroid, bbox, outlines, moments) of the objects among `contours`, in reading order
 /// (see reading_order), (int32 arrays of
 /// shape (K, 1, 2) or (K, 2), as cv2.findContours traces them in `grey`, an H x W uint8
 /// image): those whose enclosed area is within [min_area, max_area] px^2 and, unless
 /// keep_border, whose bounding box does not touch the image's border. With subpixel, each
-/// outline is moved to the grey-level edge (sub-pixel) and the area and centroid are the
-/// refined outline's. index: int64 (n,), positions in `contours`; area: float64 (n,);
+/// outline is moved to the grey-level edge (sub-pixel) and the area, centroid and moments
+/// are the refined outline's. index: int64 (n,), positions in `contours`; area: float64 (n,);
 /// centroid: float64 (n, 2); bbox: int64 (n, 4), x, y, width, height of the traced contour;
 /// outlines: n float64 arrays (K, 2), or an empty list when not asked for (the production
-/// loop needs only the centroids).
+/// loop needs only the centroids and moments); moments: float64 (n, 3), the enclosed area's
+/// central second moments over its area, [mu20, mu11, mu02] / area, px^2 (Green's theorem
+/// over the outline; zeros for an outline enclosing no area).
 #[pyfunction]
 #[pyo3(signature = (
     grey, contours, min_area, max_area, keep_border = false, subpixel = true, outlines = true
@@ -120,6 +124,7 @@ pub fn measure_contours<'py>(
     let area: Vec<f64> = found.iter().map(|o| o.area).collect();
     let centroid: Vec<f64> = found.iter().flat_map(|o| o.centroid).collect();
     let bbox: Vec<i64> = found.iter().flat_map(|o| o.bbox).collect();
+    let moments: Vec<f64> = found.iter().flat_map(|o| o.moments).collect();
     let arrays = PyList::empty(py);
     for o in found.iter().filter(|_| outlines) {
         let flat: Vec<f64> = o.outline.iter().flatten().copied().collect();
@@ -131,6 +136,7 @@ pub fn measure_contours<'py>(
         PyArray1::from_vec(py, centroid).reshape([n, 2])?.into_any(),
         PyArray1::from_vec(py, bbox).reshape([n, 4])?.into_any(),
         arrays,
+        PyArray1::from_vec(py, moments).reshape([n, 3])?.into_any(),
     ))
 }
 
