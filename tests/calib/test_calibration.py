@@ -120,7 +120,10 @@ def test_save_and_load_round_trip(cal: Calibration, tmp_path: Path) -> None:
         (lambda t: "\x00\x01garbage", "not valid JSON"),
         (lambda t: "[1, 2, 3]", "not a calibration"),
         (lambda t: t.replace('"planarcal-calibration"', '"something-else"'), "not a planarcal"),
-        (lambda t: t.replace('"version": 2', '"version": 3'), "version 3"),
+        (
+            lambda t: t.replace(f'"version": {FILE_VERSION}', f'"version": {FILE_VERSION + 1}'),
+            f"version {FILE_VERSION + 1}",
+        ),
         (lambda t: t.replace('"homography_world_mm_to_image_px"', '"h"'), "missing"),
         (lambda t: t.replace('"solver": "normalized_dlt"', '"solver": "magic"'), "solver"),
     ],

@@ -22,6 +22,10 @@ Beyond the paper:
   in mm from the fit's covariance.
 * **Printer scale**: ``rescaled`` corrects the world frame by an independent measurement of
   the board's pitch (or its printed check bar), which no homography can see.
+* **The robot's frame**: ``register`` (or ``with_robot_frame``) attaches a registration of the
+  board to a robot's base frame (a :class:`~planarcal.robot.RobotFrame`, from touch points or
+  N-point pairs); ``image_to_world(px, frame="robot")`` then maps pixels straight to robot
+  mm, the registration's own error carried into the 1-sigma. It is saved with the file.
 
 This module is the Calibration class; its parts live beside it: ``lens_model`` (the lens it
 fitted), ``lens_choice`` (which lens model, and the candidates tried), ``plane_fit`` (the
@@ -73,6 +77,10 @@ from planarcal.homography import (
     reprojection_errors,
     transform_points,
 )
+from planarcal.robot.output_frame import Coords, board_to_robot, checked_frame, default_frame
+from planarcal.robot.registration import RobotFrame
+from planarcal.robot.touch_pairs import plane_points
+from planarcal.robot.transform_fit import Model
 
 # Other modules and old code import these from here; they live in the modules named above.
 __all__ = [
@@ -190,6 +198,7 @@ class Calibration:
         image_size: tuple[int, int] | None,
         intrinsics: CameraIntrinsics | None,
         world_scale: tuple[float, float],
+        robot_frame: RobotFrame | None = None,
     ) -> None:
         self._world = world
         self._image = image
@@ -205,6 +214,8 @@ class Calibration:
         self.intrinsics = intrinsics
         self.world_scale = world_scale
         """(sx, sy): the factors ``rescaled`` applied to the board's nominal coordinates."""
+        self.robot_frame = robot_frame
+        """The registration of the board to the robot's base frame, or None (see register)."""
 
     # -- construction from images ---------------------------------------------------------
 
@@ -260,7 +271,8 @@ class Calibration:
         and last dot of a row and of a column with a steel rule, divided by the number of
         gaps; or the printed 100 mm check bar, whose measured length / 100 times the nominal
         pitch is the pitch) and pass the pitches in X (along a row) and Y (down a column);
-        Y defaults to X. Needs the board the calibration was made with."""
+        Y defaults to X. Needs the board the calibration was made with. A registration to the
+        robot is not carried over: it was fitted in the old millimetres (register again)."""
         if self.board is None:
             raise BoardError("rescaled needs the board the calibration was made from")
         px = _positive_mm("measured_pitch_x_mm", measured_pitch_x_mm)
@@ -356,6 +368,7 @@ class Calibration:
             size,
             intrinsics,
             self.world_scale,
+            self.robot_frame,
         )
         return cal
 
@@ -371,6 +384,74 @@ class Calibration:
         raise FrameSizeError(
             frame_size.size_mismatch(size, self.image_size, what), size, self.image_size
         )
+
+    # -- the robot's frame ------------------------------------------------------------------
+
+    def with_robot_frame(self, robot_frame: RobotFrame | None) -> Calibration:
+        """This calibration with ``robot_frame`` as its registration to the robot (None: with
+        none); a new Calibration, this one unchanged. The registration's board points must be
+        in this calibration's board mm (``register`` makes sure of that)."""
+        if robot_frame is not None and not isinstance(robot_frame, RobotFrame):
+            raise ArgumentError(
+                f"robot_frame must be a RobotFrame or None, got {type(robot_frame).__name__}"
+            )
+        cal = Calibration.__new__(Calibration)
+        cal._init(
+            self._world,
+            self._image,
+            self._fit,
+            self.solver,
+            self.refine,
+            self.board,
+            self.image_size,
+            self.intrinsics,
+            self.world_scale,
+            robot_frame,
+        )
+        return cal
+
+    def register(
+        self,
+        robot_mm: ArrayLike,
+        *,
+        dots: ArrayLike | None = None,
+        board_mm: ArrayLike | None = None,
+        image_px: ArrayLike | None = None,
+        robot_z: ArrayLike | None = None,
+        model: Model = "rigid",
+        outlier_mm: float | None = None,
+        drop_outliers: bool = False,
+    ) -> Calibration:
+        """This calibration registered to a robot's base frame (a new Calibration with
+        ``robot_frame`` set) from point pairs: robot points (N, 2) or (N, 3) with z, in mm,
+        each paired with one of
+
+        * ``dots``: the index of the board dot the robot's tool touched (N,), k = row x cols
+          + col from the origin dot (``CircleGridBoard.world_points``);
+        * ``board_mm``: the touched points' board positions (N, 2), mm;
+        * ``image_px``: N-point, where the camera saw the part the robot placed (N, 2), px;
+          mapped through this calibration, their 1-sigma goes into the fit's noise floor.
+
+        ``model``, ``robot_z``, ``outlier_mm`` and ``drop_outliers`` as in RobotFrame.fit.
+        ArgumentError (an index off the board, malformed points), BoardError (dots, but no
+        board recorded), RegistrationError (pairs that cannot fix the model)."""
+        plane, plane_std = plane_points(self, dots=dots, board_mm=board_mm, image_px=image_px)
+        frame = RobotFrame.fit(
+            plane,
+            robot_mm,
+            model=model,
+            robot_z=robot_z,
+            outlier_mm=outlier_mm,
+            drop_outliers=drop_outliers,
+            plane_std_mm=plane_std,
+        )
+        return self.with_robot_frame(frame)
+
+    @property
+    def default_frame(self) -> Coords:
+        """The frame positions are given in unless a call says otherwise: "robot" once a
+        registration is attached, else "board"."""
+        return default_frame(self.robot_frame)
 
     # -- the homography and the mapping -----------------------------------------------------
 
@@ -439,8 +520,13 @@ class Calibration:
         return_std: bool = False,
         pixel_sigma: float = 0.0,
         image_size: tuple[int, int] | None = None,
+        frame: Coords = "board",
     ) -> Any:
         """Pixel positions -> plane positions in mm: (N, 2) -> (N, 2), or (2,) -> (2,).
+
+        ``frame``: "board" (the default: the board's mm) or "robot" (the robot's base frame
+        through the registration, ``robot_frame.to_robot`` of the board position; an
+        ArgumentError if the calibration has none).
 
         ``image_size``: (width, height) of the image the pixels come from; FrameSizeError if
         the calibration was made on another size (see ``check_image_size``).
@@ -451,8 +537,13 @@ class Calibration:
 
         ``return_std=True`` returns ``(mm, std_mm)``: each point's 1-sigma position error
         (sqrt of the covariance's trace: the RMS distance from the truth) from the fit's
-        uncertainty, plus the pixel's own noise of ``pixel_sigma`` px per coordinate.
+        uncertainty, plus the pixel's own noise of ``pixel_sigma`` px per coordinate. In the
+        robot frame the registration's own error at the point is added in quadrature
+        (``RobotFrame.robot_std_mm``).
         """
+        registration = (
+            self.robot_frame if checked_frame(frame, self.robot_frame) == "robot" else None
+        )
         if image_size is not None:
             self.check_image_size(image_size)
         arr = np.asarray(points_px, dtype=np.float64)
@@ -483,21 +574,48 @@ class Calibration:
             lifted = points_at_height(world, self.camera_pose, h)
             factor = 1.0 - h / self.camera_pose.distance_mm
         if not return_std:
+            if registration is not None:
+                lifted, _ = board_to_robot(registration, lifted)
             return lifted[0] if single else lifted
         std = std * np.abs(factor)
+        if registration is not None:
+            lifted, robot_std = board_to_robot(registration, lifted, std)
+            assert robot_std is not None
+            std = robot_std
         return (lifted[0], float(std[0])) if single else (lifted, std)
 
-    def _frame_mapper(self, height: float = 0.0) -> Callable[[F64], tuple[F64, F64]]:
-        """image_to_world(px, height=height, return_std=True) for the production loop, its
-        arguments checked here once: the returned function takes an (N, 2) float64 array of
-        pixels straight to the core (one call) when there is nothing to undistort or lift."""
-        if self.intrinsics is None and height == 0.0:
-            plane = self._fit.plane
-            return lambda px: plane.image_to_world_std(px, 0.0)
+    def _frame_mapper(
+        self, height: float = 0.0, frame: Coords = "board"
+    ) -> Callable[[F64], tuple[F64, F64]]:
+        """image_to_world(px, height=height, return_std=True, frame=frame) for the production
+        loop, its arguments checked here once: the returned function takes an (N, 2) float64
+        array of pixels straight to the core (one call) when there is nothing to undistort or
+        lift, then through the registration for the robot frame."""
+        registration = (
+            self.robot_frame if checked_frame(frame, self.robot_frame) == "robot" else None
+        )
         if height != 0.0:
             # IntrinsicsError now, rather than on every frame with an object in it.
             _ = self.camera_pose
-        return lambda px: self.image_to_world(px, height=height, return_std=True)
+        plane = self._fit.plane
+        direct = self.intrinsics is None and height == 0.0
+
+        def board(px: F64) -> tuple[F64, F64]:
+            if direct:
+                return plane.image_to_world_std(px, 0.0)
+            mm, std = self.image_to_world(px, height=height, return_std=True)
+            return mm, std
+
+        if registration is None:
+            return board
+
+        def robot(px: F64) -> tuple[F64, F64]:
+            mm, std = board(px)
+            out, robot_std = board_to_robot(registration, mm, std)
+            assert robot_std is not None
+            return out, robot_std
+
+        return robot
 
     def world_covariance(self, points_px: ArrayLike, *, pixel_sigma: float = 0.0) -> F64:
         """The 2 x 2 covariance (mm^2) of each point's position on the plane, (N, 2, 2)."""
@@ -655,6 +773,7 @@ class Calibration:
             c.image_size,
             c.intrinsics,
             c.world_scale,
+            c.robot_frame,
         )
         return cal
 
@@ -674,9 +793,11 @@ class Calibration:
 
     def __repr__(self) -> str:
         s = self.stats
+        registered = "" if self.robot_frame is None else f", registered ({self.robot_frame.model})"
         return (
             f"Calibration({len(self._world)} points, solver={self.solver!r}, "
-            f"refine={self.refine}, lens={self.lens_model!r}, mean error {s.mean:.3f} px)"
+            f"refine={self.refine}, lens={self.lens_model!r}, mean error {s.mean:.3f} px"
+            f"{registered})"
         )
 
 

@@ -1,6 +1,10 @@
 """The calibration file: the versioned JSON form of a Calibration (what ``to_dict`` writes and
 ``from_dict`` reads), which versions this planarcal reads, and the checks that turn a corrupt,
-truncated or foreign file into a CalibrationFileError rather than a wrong calibration."""
+truncated or foreign file into a CalibrationFileError rather than a wrong calibration.
+
+Version 3 adds ``robot_frame``: the registration to the robot (RobotFrame.to_dict: the model,
+the point pairs, the residuals), or null; refitted from its pairs on load and refused if the
+stored transform is not theirs. Versions 1 and 2 have none and load without one."""
 
 from __future__ import annotations
 
@@ -33,6 +37,7 @@ from planarcal.errors import (
 )
 from planarcal.files import atomic_write
 from planarcal.homography import SOLVERS, Solver
+from planarcal.robot.registration import RobotFrame
 
 if TYPE_CHECKING:
     # Only a type here: calibration imports this module to read and write itself.
@@ -41,8 +46,8 @@ if TYPE_CHECKING:
 F64 = NDArray[np.float64]
 
 FILE_FORMAT = "planarcal-calibration"
-FILE_VERSION = 2
-READS_VERSIONS = (1, 2)
+FILE_VERSION = 3
+READS_VERSIONS = (1, 2, 3)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,6 +63,7 @@ class FileContents:
     image_size: tuple[int, int] | None
     intrinsics: CameraIntrinsics | None
     world_scale: tuple[float, float]
+    robot_frame: RobotFrame | None = None
 
 
 def calibration_to_dict(cal: Calibration) -> dict[str, Any]:
@@ -84,6 +90,7 @@ def calibration_to_dict(cal: Calibration) -> dict[str, Any]:
             "image_px": cal.image_points.tolist(),
         },
         "summary": {k: json_number(v) for k, v in summary.items()},
+        "robot_frame": None if cal.robot_frame is None else cal.robot_frame.to_dict(),
     }
 
 
@@ -137,8 +144,14 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
         raise CalibrationFileError(f"{source}: image_size_px must be [width, height]")
     image_size = None if size is None else (size[0], size[1])
     fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
+    robot_data = data.get("robot_frame")
+    robot_frame = (
+        None
+        if robot_data is None
+        else RobotFrame.from_dict(robot_data, f"{source}: its registration to the robot")
+    )
     return FileContents(
-        world, image, fit, solver, refine, board, image_size, intrinsics, world_scale
+        world, image, fit, solver, refine, board, image_size, intrinsics, world_scale, robot_frame
     )
 
 

@@ -1,11 +1,13 @@
 """RobotFrame: the registration of the calibrated plane (board mm) to a robot's base frame
 (robot mm), fitted from touch points, with everything a user needs to trust it or redo it:
-per-point residuals, leave-one-out errors, the touches named as outliers, the handedness, and
-with z the plane's height and tilt in the robot frame."""
+per-point residuals, leave-one-out errors, the touches named as outliers, the handedness, with
+z the plane's height and tilt in the robot frame, and the transform's own 1-sigma error at any
+board point (``std_mm``), to carry a position's uncertainty into the robot frame."""
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -16,6 +18,7 @@ from planarcal import arguments
 from planarcal.errors import ArgumentError, CalibrationFileError, RegistrationError
 from planarcal.robot.outliers import find_outliers, leave_one_out
 from planarcal.robot.plane_height import PlaneHeight, fit_plane_height, tilt_warnings
+from planarcal.robot.prediction_error import parameter_covariance, prediction_std_mm
 from planarcal.robot.summary import registration_summary
 from planarcal.robot.transform_fit import (
     F64,
@@ -51,7 +54,10 @@ class RobotFrame:
     used (for a dropped outlier, its error under the fit). ``rms_mm``, ``max_mm`` and
     ``leave_one_out_rms_mm`` are over the points used. ``outliers`` names the points whose
     leave-one-out error exceeded ``outlier_threshold_mm``; ``dropped_outliers`` says whether
-    the fit left them out. ``plane`` is the plane's height and tilt when z was given."""
+    the fit left them out. ``plane`` is the plane's height and tilt when z was given.
+    ``plane_std_mm`` is each board point's own 1-sigma error (RMS distance, mm) where the
+    board points were measured rather than known (N-point pairs mapped from pixels), else
+    None."""
 
     model: Model
     reflected: bool
@@ -73,6 +79,7 @@ class RobotFrame:
     outlier_threshold_mm: float
     plane: PlaneHeight | None
     warnings: tuple[str, ...]
+    plane_std_mm: F64 | None = None
 
     @classmethod
     def fit(
@@ -84,13 +91,16 @@ class RobotFrame:
         robot_z: ArrayLike | None = None,
         outlier_mm: float | None = None,
         drop_outliers: bool = False,
+        plane_std_mm: ArrayLike | None = None,
     ) -> RobotFrame:
         """The registration fitted to pairs of board points (N, 2) and robot points (N, 2),
         or (N, 3) with z (or z as ``robot_z``), all in mm. ``outlier_mm`` is the leave-one-out
         error above which a point is named an outlier (default max(1 mm, 5 x the median
         leave-one-out error of the other points without it); ``drop_outliers`` refits without
-        them. ArgumentError for malformed arguments, RegistrationError for pairs that cannot
-        fix the model."""
+        them. ``plane_std_mm`` (N,): the board points' own 1-sigma errors (mm) where they were
+        measured (N-point pairs: image px mapped through the calibration); they set a floor
+        under the touch noise that ``std_mm`` assumes. ArgumentError for malformed arguments,
+        RegistrationError for pairs that cannot fix the model."""
         if model not in MODELS:
             raise ArgumentError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
         if not isinstance(drop_outliers, bool):
@@ -99,6 +109,7 @@ class RobotFrame:
             None if outlier_mm is None else arguments.positive("outlier_mm", outlier_mm)
         )
         plane, robot, z = _pairs(plane_mm, robot_mm, robot_z)
+        plane_std = _plane_std(plane_std_mm, len(plane))
         check_geometry(plane, robot, model)
 
         outliers, threshold = find_outliers(plane, robot, model, threshold_given)
@@ -133,6 +144,7 @@ class RobotFrame:
             outlier_threshold_mm=threshold,
             plane=height,
             warnings=tilt_warnings(height, z is not None),
+            plane_std_mm=None if plane_std is None else _frozen(plane_std),
         )
 
     @property
@@ -152,6 +164,57 @@ class RobotFrame:
         """Robot points (..., 2) in mm as board points (..., 2) in mm."""
         flat, lead = arguments.points("robot_mm", robot_mm)
         return apply(self.robot_to_plane, flat).reshape(*lead, 2)
+
+    @functools.cached_property
+    def _covariance(self) -> tuple[F64, F64, float]:
+        used = self.used
+        return parameter_covariance(
+            self.plane_to_robot,
+            self.plane_mm[used],
+            self.robot_mm[used],
+            self.model,
+            self.reflected,
+            None if self.plane_std_mm is None else self.plane_std_mm[used],
+        )
+
+    @property
+    def noise_mm(self) -> float:
+        """The touch noise (mm per coordinate) the fit assumes: from its residuals, and at
+        least the floor of a robot's repeatability plus the board points' own error."""
+        return self._covariance[2]
+
+    @property
+    def distance_gain(self) -> float:
+        """The most a distance on the board grows in the robot frame: 1 for rigid, the scale
+        for similarity, the largest singular value of the linear part for affine."""
+        if self.model == "rigid":
+            return 1.0
+        return float(np.linalg.svd(self.plane_to_robot[:2, :2], compute_uv=False)[0])
+
+    def std_mm(self, points_mm: ArrayLike) -> F64:
+        """The transform's own 1-sigma error (RMS distance, mm) at board points (..., 2) in
+        mm: from the fit's parameter covariance and the touch noise (``noise_mm``). Smallest
+        near the touched points' centroid, growing away from it."""
+        flat, lead = arguments.points("points_mm", points_mm)
+        centre, cov, _ = self._covariance
+        std = prediction_std_mm(self.plane_to_robot, centre, cov, flat, self.model, self.reflected)
+        return std.reshape(lead)
+
+    def robot_std_mm(self, points_mm: ArrayLike, board_std_mm: ArrayLike) -> F64:
+        """The 1-sigma error (RMS distance, mm) in the robot frame of board points (..., 2)
+        known to ``board_std_mm`` (...): the board error carried through the map (unchanged
+        by a rigid one, which keeps distances; scaled by ``distance_gain`` otherwise, an upper
+        bound for affine) and the transform's own error (``std_mm``), in quadrature."""
+        own = self.std_mm(points_mm)
+        try:
+            board = np.broadcast_to(np.asarray(board_std_mm, dtype=np.float64), own.shape)
+        except (TypeError, ValueError):
+            raise ArgumentError(
+                f"board_std_mm must be one number per point, shape {own.shape}, got "
+                f"{np.shape(board_std_mm)}"
+            ) from None
+        out: F64 = np.sqrt((self.distance_gain * board) ** 2 + own**2)
+        return out
 
     def summary(self) -> str:
         """The residual table and the fit's quality in words, with what to do if it is poor."""
@@ -186,6 +249,7 @@ class RobotFrame:
             "outlier_threshold_mm": self.outlier_threshold_mm,
             "plane": None if self.plane is None else self.plane.to_dict(),
             "warnings": list(self.warnings),
+            "plane_std_mm": None if self.plane_std_mm is None else self.plane_std_mm.tolist(),
         }
 
     @classmethod
@@ -208,6 +272,7 @@ class RobotFrame:
                 robot_z=data["robot_z_mm"],
                 outlier_mm=data["outlier_mm"],
                 drop_outliers=data["drop_outliers"],
+                plane_std_mm=data.get("plane_std_mm"),
             )
             stored = np.asarray(data["plane_to_robot"], dtype=np.float64)
             reflected, outliers = data["reflected"], data["outliers"]
@@ -262,6 +327,23 @@ def _pairs(
             f"{len(robot)} robot points"
         )
     return plane, robot, z
+
+
+def _plane_std(value: ArrayLike | None, n: int) -> F64 | None:
+    """The board points' own 1-sigma errors (N,), checked: finite and >= 0."""
+    if value is None:
+        return None
+    try:
+        std = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ArgumentError("plane_std_mm must be an array of N errors in mm") from None
+    if std.shape != (n,):
+        raise ArgumentError(f"plane_std_mm must have shape ({n},), got {std.shape}")
+    bad = np.flatnonzero(~(np.isfinite(std) & (std >= 0)))
+    if bad.size:
+        k = int(bad[0])
+        raise ArgumentError(f"plane_std_mm of point {k} must be finite and >= 0: {std[k]!r}", k)
+    return std
 
 
 def _rotation_and_scale(

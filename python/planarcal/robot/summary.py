@@ -18,6 +18,19 @@ USABLE_MM = 1.0
 SCALE_WARNING = 0.005
 
 
+def quality(frame: RobotFrame) -> str:
+    """The fit in a word, by its leave-one-out RMS: "excellent", "good", "usable", "poor", or
+    "unchecked" (too few points for a leave-one-out error)."""
+    loo = frame.leave_one_out_rms_mm
+    if not math.isfinite(loo):
+        return "unchecked"
+    if loo <= EXCELLENT_MM:
+        return "excellent"
+    if loo <= GOOD_MM:
+        return "good"
+    return "usable" if loo <= USABLE_MM else "poor"
+
+
 def registration_summary(frame: RobotFrame) -> str:
     """The residual table and the quality in words."""
     lines = [_headline(frame), "", *_table(frame), "", *_verdict(frame)]
@@ -62,6 +75,16 @@ def _table(frame: RobotFrame) -> list[str]:
     rows.append(
         f"RMS {frame.rms_mm:.3f} mm, max {frame.max_mm:.3f} mm, "
         f"leave-one-out RMS {frame.leave_one_out_rms_mm:.3f} mm"
+    )
+    # The map's own error where it is best known and at the edge of what was touched: what
+    # it adds to every position's 1-sigma in the robot frame.
+    used = frame.plane_mm[frame.used]
+    own = frame.std_mm(used)
+    centre = float(frame.std_mm(used.mean(axis=0)))
+    rows.append(
+        f"The map's own 1-sigma: {centre:.3f} mm at the touched points' centre, up to "
+        f"{float(own.max()):.3f} mm at the touched points (touch noise "
+        f"{frame.noise_mm:.3f} mm per axis); it grows beyond them"
     )
     return rows
 

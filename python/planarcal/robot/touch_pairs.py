@@ -1,0 +1,95 @@
+"""The board side of a registration's point pairs, in the calibration's board mm, from what a
+user can give: the dots the robot touched (their indices on the board), board positions in
+mm, or, N-point, the image positions (px) where the camera saw the part the robot placed,
+mapped through the calibration (their own 1-sigma then goes with them).
+
+A dot's index is the board's own numbering: k = row x cols + col, 0 the origin dot, row-major
+(``CircleGridBoard.world_points``); its position is the dot's centre in the calibration's
+world frame (the board's nominal coordinates times the printer-scale correction, if any)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from planarcal import arguments
+from planarcal.errors import ArgumentError, BoardError
+from planarcal.robot.transform_fit import F64
+
+if TYPE_CHECKING:
+    # Only a type here: calibration imports this module to register itself.
+    from planarcal.calib.calibration import Calibration
+
+
+def plane_points(
+    calibration: Calibration,
+    *,
+    dots: ArrayLike | None = None,
+    board_mm: ArrayLike | None = None,
+    image_px: ArrayLike | None = None,
+) -> tuple[F64, F64 | None]:
+    """The board points (N, 2) in mm of exactly one of ``dots`` (N,), ``board_mm`` (N, 2) or
+    ``image_px`` (N, 2), and their own 1-sigma errors (N,) for image points (None for dots and
+    board mm, which are exact by definition of the board's frame)."""
+    given = [
+        name
+        for name, v in (("dots", dots), ("board_mm", board_mm), ("image_px", image_px))
+        if v is not None
+    ]
+    if len(given) != 1:
+        raise ArgumentError(
+            "give the board side of the pairs as exactly one of dots, board_mm or image_px, "
+            f"got {' and '.join(given) if given else 'none'}"
+        )
+    if dots is not None:
+        return dot_positions(calibration, dots), None
+    if board_mm is not None:
+        flat, lead = arguments.points("board_mm", board_mm)
+        if len(lead) != 1:
+            raise ArgumentError(f"board_mm must have shape (N, 2), got {np.shape(board_mm)}")
+        return flat, None
+    assert image_px is not None  # exactly one was given
+    flat, lead = arguments.points("image_px", image_px)
+    if len(lead) != 1:
+        raise ArgumentError(f"image_px must have shape (N, 2), got {np.shape(image_px)}")
+    mm, std = calibration.image_to_world(flat, return_std=True)
+    return np.asarray(mm, dtype=np.float64), np.asarray(std, dtype=np.float64)
+
+
+def dot_positions(calibration: Calibration, dots: ArrayLike) -> F64:
+    """The centres (N, 2) in the calibration's board mm of the dots numbered ``dots`` (N,);
+    ArgumentError for an index that is not a whole number or is off the board, BoardError for
+    a calibration that records no board."""
+    board = calibration.board
+    if board is None:
+        raise BoardError(
+            "this calibration records no board (made from bare points), so a dot's index has "
+            "no position: give the touch points as board mm instead"
+        )
+    try:
+        # As objects: an int array would turn True into dot 1.
+        raw = dots if isinstance(dots, np.ndarray) else np.asarray(dots, dtype=object)
+    except (TypeError, ValueError):
+        raise ArgumentError("dots must be a list of dot indices") from None
+    if raw.ndim != 1 or raw.size == 0:
+        raise ArgumentError(f"dots must be a list of dot indices (N,), got shape {raw.shape}")
+    n = board.n_points
+    index = np.empty(len(raw), dtype=np.int64)
+    for i, value in enumerate(raw.tolist()):
+        whole = isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
+        if isinstance(value, float | np.floating) and float(value).is_integer():
+            whole, value = True, int(value)
+        if not whole:
+            raise ArgumentError(f"dot {i}: {value!r} is not a dot index (a whole number)", i)
+        if not 0 <= value < n:
+            raise ArgumentError(
+                f"dot {i}: index {value} is off the board: a {board.cols} x {board.rows} board "
+                f"has dots 0 to {n - 1} (k = row x {board.cols} + column, 0 the origin dot)",
+                i,
+            )
+        index[i] = value
+    scale = np.asarray(calibration.world_scale, dtype=np.float64)
+    out: F64 = board.world_points()[index] * scale
+    return out
