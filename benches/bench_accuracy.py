@@ -15,8 +15,15 @@
    (planarcal.calibrate_camera), a calibration with them on each random scene, and 16 mm
    discs 10 and 20 mm tall at seven places over and around the board, rendered with their
    walls; their tops located (planarcal.locate_objects) with the height given and without.
+4. Error bars (benches/error_bars.py): RMS actual error / RMS predicted 1-sigma (std_mm) of
+   board points (2,000 random points over the board, exact pixels) and of parts (12 nuts,
+   washers, discs and bolts located by locate_objects), per scene and pooled, on webcam
+   scenes whose lens has its distortion centre 0-40 px off the image centre, k2 and
+   tangential terms (synth.webcam, 1280 x 720 and 640 x 480), on today's paper scenes, and
+   on the demo's scene. The target: within [0.67, 1.5] for both.
 
-Run: python benches/bench_accuracy.py [--scenes 24] [--markdown]
+Run: python benches/bench_accuracy.py [--scenes 24] [--error-bar-scenes 8] [--only SECTION]
+     [--markdown]
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from error_bars import Errors, demo_pair, measure_pair, paper_pairs, rms, webcam_pairs
 from reporting import cpu_model, table_lines
 
 from planarcal import synth
@@ -197,16 +205,111 @@ def real() -> list[list[str]]:
     return rows
 
 
+ERROR_BAR_BAND = (0.67, 1.5)
+
+
+def _ratio_text(e: Errors) -> str:
+    return f"{e.ratio:.2f}" if len(e.actual) else "-"
+
+
+def error_bars(n: int, md: bool) -> bool:
+    """Prints the error-bar tables (per scene, then pooled per family and category); True if
+    every family's pooled ratios are within ERROR_BAR_BAND."""
+    rng = np.random.default_rng(2027)
+    families = {
+        "webcam 1280x720": webcam_pairs(n, [(1280, 720)]),
+        "webcam 640x480": webcam_pairs(n, [(640, 480)]),
+        "paper": paper_pairs(max(2, n // 2)),
+        "demo": demo_pair(),
+    }
+    rows = []
+    pooled_rows = []
+    ok = True
+    lo, hi = ERROR_BAR_BAND
+    for family, pairs in families.items():
+        results = []
+        for name, pair in pairs:
+            r = measure_pair(name, pair, rng)
+            results.append(r)
+            row = [
+                name,
+                f"{r.centre_offset_px:.1f}",
+                r.lens_model,
+                f"{rms(r.board.actual):.4f}",
+                f"{rms(r.board.predicted):.4f}",
+                _ratio_text(r.board),
+                str(len(r.parts.actual)),
+                f"{rms(r.parts.actual):.4f}",
+                f"{rms(r.parts.predicted):.4f}",
+                _ratio_text(r.parts),
+            ]
+            rows.append(row)
+            print(" ".join(row), file=sys.stderr, flush=True)
+        board = Errors.pooled([r.board for r in results])
+        parts = Errors.pooled([r.parts for r in results])
+        per_board = [r.board.ratio for r in results]
+        per_parts = [r.parts.ratio for r in results if len(r.parts.actual)]
+        pooled_rows.append(
+            [
+                family,
+                str(len(results)),
+                f"{board.ratio:.2f}",
+                f"{min(per_board):.2f}-{max(per_board):.2f}",
+                f"{parts.ratio:.2f}",
+                f"{min(per_parts):.2f}-{max(per_parts):.2f}" if per_parts else "-",
+            ]
+        )
+        ok = ok and lo <= board.ratio <= hi and lo <= parts.ratio <= hi
+    print(
+        "Error bars: RMS actual error / RMS predicted 1-sigma (std_mm), board points (2,000 "
+        "random, exact pixels) and parts (located by locate_objects), mm"
+    )
+    head = [
+        "scene",
+        "centre off px",
+        "lens",
+        "board actual",
+        "predicted",
+        "ratio",
+        "parts",
+        "parts actual",
+        "predicted",
+        "ratio",
+    ]
+    right = [h not in ("scene", "lens") for h in head]
+    for line in table_lines(head, right, rows, md):
+        print(line)
+    print()
+    print("Pooled (RMS over every point of the family's scenes; range: per scene)")
+    head = ["scenes", "n", "board ratio", "per scene", "parts ratio", "per scene"]
+    for line in table_lines(head, [False, True, True, True, True, True], pooled_rows, md):
+        print(line)
+    print(
+        f"Target: pooled ratios within [{lo}, {hi}] for both categories: {'PASS' if ok else 'FAIL'}"
+    )
+    return ok
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=24)
+    parser.add_argument(
+        "--error-bar-scenes", type=int, default=8, help="webcam scenes per resolution"
+    )
+    parser.add_argument("--only", choices=("accuracy", "error-bars"), help="run only this section")
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args()
     start = time.perf_counter()
-    rows, summary = rendered(args.scenes)
     md = args.markdown
     print(f"Machine: {cpu_model()}")
     print()
+    if args.only != "accuracy":
+        error_bars(args.error_bar_scenes, md)
+        print()
+    if args.only == "error-bars":
+        print(f"({time.perf_counter() - start:.0f} s)")
+        return
+    rows, summary = rendered(args.scenes)
     print(
         f"Rendered scenes ({args.scenes}): mean world error (mm) at 2,000 random points over "
         "the board"

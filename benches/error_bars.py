@@ -1,0 +1,178 @@
+"""Whether the error bars a calibration reports cover the errors it makes, against rendered
+truth: the measurements behind bench_accuracy.py's error-bar section, reusable (the robot
+frame's measurement takes the same parts and a mapping of its own).
+
+The figure of merit is the ratio of the RMS actual error to the RMS predicted 1-sigma (both
+as RMS distances, mm: std_mm is the square root of the covariance's trace): 1 when the bars
+are honest, above 1 when they flatter, below when they are too cautious.
+
+* Board points: random points over the board's area, projected exactly (the renderer's own
+  camera) and mapped back through the calibration, as exact pixels (``pixel_sigma=0``).
+* Parts: the parts of a rendered scene located by ``locate_objects`` (their centroids from
+  the sub-pixel outlines), each matched to the nearest true centroid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal import synth
+from planarcal.calib.calibration import Calibration
+from planarcal.calib.detect import detect_board
+from planarcal.live.objects import locate_objects
+from planarcal.synth.webcam import random_webcam_scene, scattered_parts
+
+F64 = NDArray[np.float64]
+
+Mapping = Callable[[F64], tuple[F64, F64]]
+"""Pixels (N, 2) -> (positions (N, 2), 1-sigma (N,)), in the frame the truth is in."""
+
+# A located part farther than this from every true centroid is not one of them (mm).
+MATCH_MM = 3.0
+
+
+def rms(values: Any) -> float:
+    a = np.asarray(values, dtype=np.float64)
+    return float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
+
+
+@dataclasses.dataclass
+class Errors:
+    """Actual errors and predicted 1-sigma (RMS distances, mm) of one category's points."""
+
+    actual: F64
+    predicted: F64
+
+    @property
+    def ratio(self) -> float:
+        """RMS actual error / RMS predicted 1-sigma."""
+        return rms(self.actual) / rms(self.predicted)
+
+    @staticmethod
+    def pooled(parts: Sequence[Errors]) -> Errors:
+        return Errors(
+            np.concatenate([p.actual for p in parts]), np.concatenate([p.predicted for p in parts])
+        )
+
+
+def exact_pixels(cal: Calibration) -> Mapping:
+    """The calibration's mapping of exact pixels (no detector noise): board points."""
+    return lambda px: cal.image_to_world(px, return_std=True, pixel_sigma=0.0)  # type: ignore[no-any-return]
+
+
+def board_point_errors(
+    scene: synth.RenderedScene,
+    mapping: Mapping,
+    rng: np.random.Generator,
+    n: int = 2000,
+    to_truth_frame: Callable[[F64], F64] | None = None,
+) -> Errors:
+    """``n`` random points over the board's area (scene's board): projected exactly, mapped
+    by ``mapping``, against the truth (in board mm, or ``to_truth_frame`` of it)."""
+    board = scene.board if scene.board is not None else synth.PAPER_BOARD
+    span = np.array([(board.cols - 1) * board.pitch, (board.rows - 1) * board.pitch])
+    truth = rng.uniform(0.0, 1.0, (n, 2)) * span
+    mm, std = mapping(scene.project(truth))
+    if to_truth_frame is not None:
+        truth = to_truth_frame(truth)
+    return Errors(np.hypot(*(mm - truth).T), np.asarray(std, dtype=np.float64))
+
+
+def part_errors(
+    scene: synth.RenderedScene,
+    cal: Calibration,
+    locate: Callable[[Any, Calibration], list[Any]] | None = None,
+    to_truth_frame: Callable[[F64], F64] | None = None,
+) -> Errors:
+    """The scene's parts located (``locate(image, cal)``, default ``locate_objects``), each
+    against the nearest true centroid (board mm, or ``to_truth_frame`` of it); parts not
+    within MATCH_MM of one are left out (none are in these scenes)."""
+    truth = scene.object_centroids_mm
+    if to_truth_frame is not None:
+        truth = to_truth_frame(truth)
+    found = (locate or locate_objects)(scene.image, cal)
+    actual, predicted = [], []
+    for o in found:
+        assert o.world_mm is not None and o.world_std_mm is not None
+        gap = np.hypot(*(truth - np.asarray(o.world_mm)).T)
+        j = int(gap.argmin())
+        if gap[j] <= MATCH_MM:
+            actual.append(float(gap[j]))
+            predicted.append(float(o.world_std_mm))
+    return Errors(np.array(actual), np.array(predicted))
+
+
+@dataclasses.dataclass
+class SceneErrors:
+    """One scene's calibration and both categories' errors."""
+
+    name: str
+    size: tuple[int, int]
+    centre_offset_px: float
+    lens_model: str
+    board: Errors
+    parts: Errors
+    calibration: Calibration
+
+
+def measure_pair(
+    name: str, pair: synth.PaperScene, rng: np.random.Generator, board_points: int = 2000
+) -> SceneErrors:
+    """Calibrates on the pair's board image (lens "auto") and measures both categories."""
+    view = pair.calibration
+    assert view.board is not None
+    cal = Calibration.from_detection(detect_board(view.image, view.board))
+    cam = view.camera
+    offset = float(np.hypot(cam.cx - (cam.width - 1) / 2.0, cam.cy - (cam.height - 1) / 2.0))
+    return SceneErrors(
+        name,
+        (cam.width, cam.height),
+        offset,
+        cal.lens_model,
+        board_point_errors(view, exact_pixels(cal), rng, board_points),
+        part_errors(pair.objects, cal),
+        cal,
+    )
+
+
+SIZES = ((1280, 720), (640, 480))
+"""The webcam scenes' resolutions."""
+
+
+def webcam_pairs(n: int, sizes: Sequence[tuple[int, int]] = SIZES) -> list[tuple[str, Any]]:
+    """``n`` random webcam scenes per size (distortion centre 0-40 px off, k2, tangential),
+    as (name, pair)."""
+    return [
+        (f"webcam {w}x{h} #{seed}", random_webcam_scene(seed, size=(w, h)))
+        for w, h in sizes
+        for seed in range(n)
+    ]
+
+
+def paper_pairs(n: int) -> list[tuple[str, Any]]:
+    """``n`` of today's random paper scenes (random_paper_scene), each with a second image of
+    12 scattered parts from the same camera and pose, as (name, pair)."""
+    out = []
+    for seed in range(n):
+        view = synth.random_paper_scene(1000 + seed)
+        rng = np.random.default_rng(5000 + seed)
+        parts = synth.render_scene(
+            view.camera,
+            view.pose,
+            board=None,
+            objects=scattered_parts(rng),
+            seed=seed,
+            **synth.PAPER_EFFECTS,
+        )
+        out.append((f"paper #{1000 + seed}", synth.PaperScene(view, parts)))
+    return out
+
+
+def demo_pair() -> list[tuple[str, Any]]:
+    """The demo's scene (planarcal demo): the paper's board, and its 10 bolts and nuts."""
+    return [("demo", synth.paper_scene(seed=0))]
