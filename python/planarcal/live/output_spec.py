@@ -1,9 +1,12 @@
-"""The ``-o`` argument of ``planarcal run`` read as a destination: ``tcp://HOST:PORT`` and
-``udp://HOST:PORT`` become (scheme, host, port), anything else is a file path.
+"""The ``-o`` argument of ``planarcal run`` read as a destination: ``tcp://HOST:PORT``,
+``udp://HOST:PORT`` and ``tcp-listen://HOST:PORT`` become (scheme, host, port), anything else
+is a file path.
 
 A malformed network spec raises ``OutputError`` here, at start-up, so that a typo
 (``tcp:host:5000``, ``tcp://host``, ``ftp://...``) fails at once instead of writing a file
-named after it or streaming nowhere for hours.
+named after it or streaming nowhere for hours. ``tcp-listen`` (planarcal as the server) takes
+port 0 (any free port; the server reports the one it got) and needs a host to listen on
+(``0.0.0.0`` or ``[::]`` for every interface, ``127.0.0.1`` for this machine only).
 """
 
 from __future__ import annotations
@@ -14,15 +17,18 @@ from planarcal.errors import OutputError
 
 __all__ = ["SPEC_HELP", "check_port", "netloc", "parse_network_spec"]
 
-SPEC_HELP = "expected '-' (stdout), tcp://HOST:PORT, udp://HOST:PORT or a file path"
+SPEC_HELP = (
+    "expected '-' (stdout), tcp://HOST:PORT, udp://HOST:PORT, tcp-listen://HOST:PORT or a file path"
+)
 """What an ``-o`` spec may be, for the end of an error message."""
 
-_NETWORK_SCHEMES = ("tcp", "udp")
+_NETWORK_SCHEMES = ("tcp", "udp", "tcp-listen")
 
 
 def parse_network_spec(spec: str) -> tuple[str, str, int] | None:
-    """(scheme, host, port) for tcp:// and udp:// specs, None for a file path. Raises
-    OutputError for an empty spec, an unknown scheme, or a network spec that is malformed."""
+    """(scheme, host, port) for tcp://, udp:// and tcp-listen:// specs (the scheme in lower
+    case), None for a file path. Raises OutputError for an empty spec, an unknown scheme, or a
+    network spec that is malformed."""
     if not spec.strip():
         raise OutputError(f"empty output: {SPEC_HELP}")
     match = re.fullmatch(r"([A-Za-z][A-Za-z0-9+.-]*)://(.*)", spec, flags=re.DOTALL)
@@ -42,8 +48,9 @@ def _refuse_scheme_without_slashes(spec: str) -> None:
     lowered = spec.lower()
     for scheme in _NETWORK_SCHEMES:
         if lowered.startswith(scheme + ":"):
+            what = "to listen for controllers" if scheme == "tcp-listen" else "for a peer"
             raise OutputError(
-                f"output {spec!r}: write {scheme}://HOST:PORT for a {scheme.upper()} peer "
+                f"output {spec!r}: write {scheme}://HOST:PORT {what} "
                 f"(for a file of that name, write ./{spec})"
             )
 
@@ -65,6 +72,11 @@ def _host_and_port_text(spec: str, scheme: str, rest: str) -> tuple[str, str]:
         )
     else:
         host, _, port_text = rest.partition(":")
+    if not host and scheme == "tcp-listen":
+        raise OutputError(
+            f"output {spec!r}: no host to listen on; write tcp-listen://0.0.0.0:PORT for every "
+            "interface or tcp-listen://127.0.0.1:PORT for this machine only"
+        )
     if not host:
         raise OutputError(f"output {spec!r}: no host; write {scheme}://HOST:PORT")
     return host, port_text
@@ -90,8 +102,9 @@ def _port(spec: str, scheme: str, port_text: str) -> int:
     if not re.fullmatch(r"[0-9]+", port_text):
         raise OutputError(f"output {spec!r}: the port {port_text!r} is not a number")
     port = int(port_text)
-    if not 1 <= port <= 65535:
-        raise OutputError(f"output {spec!r}: port {port} is out of range 1-65535")
+    lowest = 0 if scheme == "tcp-listen" else 1  # a listener may let the system choose
+    if not lowest <= port <= 65535:
+        raise OutputError(f"output {spec!r}: port {port} is out of range {lowest}-65535")
     return port
 
 
@@ -104,7 +117,8 @@ def netloc(host: str, port: int) -> str:
     return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
-def check_port(port: int) -> None:
-    """Raises OutputError unless ``port`` is an int (not a bool) in 1-65535."""
-    if not isinstance(port, int) or isinstance(port, bool) or not 1 <= port <= 65535:
-        raise OutputError(f"port {port!r} is out of range 1-65535")
+def check_port(port: int, *, lowest: int = 1) -> None:
+    """Raises OutputError unless ``port`` is an int (not a bool) in `lowest`-65535 (a
+    listener may take 0: any free port)."""
+    if not isinstance(port, int) or isinstance(port, bool) or not lowest <= port <= 65535:
+        raise OutputError(f"port {port!r} is out of range {lowest}-65535")

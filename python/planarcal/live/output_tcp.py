@@ -6,71 +6,24 @@ reconnect.
 
 from __future__ import annotations
 
-import collections
-import contextlib
 import errno
-import itertools
 import os
 import selectors
 import socket
-import struct
 import threading
 import time
 
 from planarcal.errors import OutputError
 from planarcal.live.output_sink import Output, OutputStats
+from planarcal.live.output_socket import LineBatch, LineQueue, Waker, close_socket, configure_socket
 from planarcal.live.output_spec import check_port, netloc
 
 __all__ = ["TcpOutput"]
 
 
-# At most this much of the buffer is handed to the socket at once: what has been handed over
-# is committed (a line once started must be finished on that connection), so a smaller batch
-# leaves more of the buffer free to drop its oldest lines for newer ones behind a slow reader.
-_BATCH_BYTES = 64 * 1024
-
 # A connection that lasted at least this long counts as a success: the back-off starts over.
 # Shorter ones (a controller that accepts and hangs up at once) keep the delay growing.
 _STABLE_CONNECTION_S = 1.0
-
-
-class _Batch:
-    """Lines joined for one connection. What has been handed to the socket is committed: a
-    line once started must be finished on that connection, or the reader sees half of it."""
-
-    __slots__ = ("data", "done", "ends", "offset")
-
-    def __init__(self, lines: list[bytes]) -> None:
-        self.data = memoryview(b"".join(lines))
-        self.ends = list(itertools.accumulate(len(line) for line in lines))
-        """Where each line ends in ``data``."""
-        self.done = 0
-        """Lines fully written."""
-        self.offset = 0
-        """Bytes written."""
-
-    @property
-    def written(self) -> bool:
-        """True once every byte is written."""
-        return self.offset == len(self.data)
-
-    def rest(self) -> memoryview:
-        """The bytes not written yet."""
-        return self.data[self.offset :]
-
-    def advance(self, written: int) -> tuple[int, int]:
-        """Records `written` more bytes as written; returns how many lines that completed,
-        and their size in bytes."""
-        self.offset += written
-        finished = self.done
-        while finished < len(self.ends) and self.ends[finished] <= self.offset:
-            finished += 1
-        if finished == self.done:
-            return 0, 0
-        start = self.ends[self.done - 1] if self.done else 0
-        lines, size = finished - self.done, self.ends[finished - 1] - start
-        self.done = finished
-        return lines, size
 
 
 class TcpOutput(Output):
@@ -149,7 +102,6 @@ class TcpOutput(Output):
         super().__init__(f"tcp://{netloc(host, port)}")
         self.host = host
         self.port = port
-        self._max_lines = max_pending_lines
         self._max_bytes = max_pending_bytes
         self._backoff_initial = backoff_initial
         self._backoff_max = backoff_max
@@ -159,8 +111,7 @@ class TcpOutput(Output):
         self._send_buffer = send_buffer
 
         # Shared with the writer thread, under self._lock.
-        self._pending: collections.deque[bytes] = collections.deque()
-        self._pending_bytes = 0
+        self._pending = LineQueue(max_pending_lines, max_pending_bytes)
         self._inflight_lines = 0  # taken by the writer, not yet fully written
         self._connected = False
         self._idle = False  # the writer waits for lines: send() must wake it
@@ -170,9 +121,7 @@ class TcpOutput(Output):
         self._attempts = 0
         self._connected_event = threading.Event()
 
-        self._wake_r, self._wake_w = socket.socketpair()
-        self._wake_r.setblocking(False)
-        self._wake_w.setblocking(False)
+        self._waker = Waker()
         self._thread = threading.Thread(
             target=self._run, name=f"planarcal output {self.spec}", daemon=True
         )
@@ -215,12 +164,7 @@ class TcpOutput(Output):
                     f"a line of {size:,} bytes is larger than max_pending_bytes "
                     f"({self._max_bytes:,}); dropped"
                 )
-            pending = self._pending
-            pending.append(data)
-            self._pending_bytes += size
-            while len(pending) > self._max_lines or self._pending_bytes > self._max_bytes:
-                self._pending_bytes -= len(pending.popleft())
-                self._n_dropped += 1
+            self._n_dropped += self._pending.push(data)
             wake = self._idle
             self._idle = False
         if wake:
@@ -228,8 +172,7 @@ class TcpOutput(Output):
         return True
 
     def _wake(self) -> None:
-        with contextlib.suppress(OSError):  # full (a wake-up is pending anyway) or closed
-            self._wake_w.send(b"\0")
+        self._waker.wake()
 
     def _close(self) -> None:
         with self._lock:
@@ -240,18 +183,15 @@ class TcpOutput(Output):
             self._thread.join(self._flush_timeout + 0.5)
         with self._lock:
             # Only if the writer is stuck (in a slow name lookup): count what it left.
-            self._n_dropped += len(self._pending)
-            self._pending.clear()
-            self._pending_bytes = 0
+            self._n_dropped += self._pending.clear()
         if not self._thread.is_alive():
-            self._wake_r.close()
-            self._wake_w.close()
+            self._waker.close()
 
     # --- the writer thread ---
 
     def _run(self) -> None:
         selector = selectors.DefaultSelector()
-        selector.register(self._wake_r, selectors.EVENT_READ)
+        selector.register(self._waker.reader, selectors.EVENT_READ)
         delay = self._backoff_initial
         try:
             while not self._stop:
@@ -291,9 +231,7 @@ class TcpOutput(Output):
                 self._drain_wake()
 
     def _drain_wake(self) -> None:
-        with contextlib.suppress(OSError):
-            while self._wake_r.recv(4096):
-                pass
+        self._waker.drain()
 
     def _connect(self, selector: selectors.BaseSelector) -> socket.socket | None:
         with self._lock:
@@ -310,7 +248,9 @@ class TcpOutput(Output):
             sock = socket.socket(family, kind, proto)
             try:
                 sock.setblocking(False)
-                self._configure(sock)
+                configure_socket(
+                    sock, send_buffer=self._send_buffer, stall_timeout=self._stall_timeout
+                )
                 code = sock.connect_ex(address)
                 if code in (errno.EINPROGRESS, errno.EWOULDBLOCK, errno.EALREADY, errno.EAGAIN):
                     code = self._await_connect(selector, sock)
@@ -347,22 +287,6 @@ class TcpOutput(Output):
         finally:
             selector.unregister(sock)
 
-    def _configure(self, sock: socket.socket) -> None:
-        """Low latency (no Nagle delay on small lines), a capped kernel buffer (stale data
-        queues there too), and dead-peer detection."""
-        options: list[tuple[int, int, int]] = [
-            (socket.IPPROTO_TCP, socket.TCP_NODELAY, 1),
-            (socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1),
-        ]
-        if self._send_buffer is not None:
-            options.append((socket.SOL_SOCKET, socket.SO_SNDBUF, self._send_buffer))
-        user_timeout = getattr(socket, "TCP_USER_TIMEOUT", None)
-        if user_timeout is not None and self._stall_timeout is not None:
-            options.append((socket.IPPROTO_TCP, user_timeout, int(self._stall_timeout * 1000)))
-        for level, option, value in options:
-            with contextlib.suppress(OSError):
-                sock.setsockopt(level, option, value)
-
     def _error(self, message: str) -> None:
         with self._lock:
             self._n_errors += 1
@@ -373,7 +297,7 @@ class TcpOutput(Output):
         is flushed. Returns why the connection is being given up, None for a clean close."""
         selector.register(sock, selectors.EVENT_READ)
         interest = selectors.EVENT_READ
-        batch: _Batch | None = None
+        batch: LineBatch | None = None
         last_progress = time.monotonic()
         try:
             while True:
@@ -406,38 +330,27 @@ class TcpOutput(Output):
         finally:
             selector.unregister(sock)
 
-    def _take_batch(self) -> tuple[_Batch | None, bool]:
-        """The oldest pending lines, up to _BATCH_BYTES (at least one line), as the next batch
-        (None when nothing is pending), and whether close() has been called."""
-        lines: list[bytes] = []
+    def _take_batch(self) -> tuple[LineBatch | None, bool]:
+        """The oldest pending lines as the next batch (None when nothing is pending), and
+        whether close() has been called."""
         with self._lock:
-            pending = self._pending
-            size = 0
-            while pending and (not lines or size + len(pending[0]) <= _BATCH_BYTES):
-                line = pending.popleft()
-                lines.append(line)
-                size += len(line)
-            self._pending_bytes -= size
-            self._inflight_lines = len(lines)
-            self._idle = not lines
+            batch = self._pending.take_batch()
+            self._inflight_lines = batch.lines if batch is not None else 0
+            self._idle = batch is None
             stopping = self._stop
-        return (_Batch(lines) if lines else None), stopping
+        return batch, stopping
 
-    def _write(self, sock: socket.socket, batch: _Batch) -> bool:
+    def _write(self, sock: socket.socket, batch: LineBatch) -> bool:
         """Hands the socket as much of the batch as it takes without waiting and counts the
         lines that are then complete. False when it took nothing (its buffer is full); an
         OSError means the connection failed."""
-        try:
-            written = sock.send(batch.rest())
-        except BlockingIOError:
-            return False
-        lines, size = batch.advance(written)
+        progressed, lines, size = batch.write_to(sock)
         if lines:
             with self._lock:
                 self._n_sent += lines
                 self._n_bytes += size
                 self._inflight_lines -= lines
-        return True
+        return progressed
 
     def _wait_limit(self, writing: bool, last_progress: float) -> tuple[float | None, str | None]:
         """How long the writer may wait for the socket (None: no limit), or why it gives the
@@ -465,7 +378,7 @@ class TcpOutput(Output):
         """Waits up to `timeout` for the socket or a wake-up and handles what came; returns
         why the connection is lost, if it is."""
         for key, mask in selector.select(timeout):
-            if key.fileobj is self._wake_r:
+            if key.fileobj is self._waker.reader:
                 self._drain_wake()
             elif mask & selectors.EVENT_READ:
                 # The controller may talk back; we do not listen, but must see EOF.
@@ -494,23 +407,14 @@ class TcpOutput(Output):
     def _disconnect(self, sock: socket.socket, reason: str | None) -> None:
         with self._lock:
             self._connected = False
-            lost = len(self._pending) + self._inflight_lines
+            lost = self._pending.clear() + self._inflight_lines
             self._n_dropped += lost
-            self._pending.clear()
-            self._pending_bytes = 0
             self._inflight_lines = 0
             self._idle = False
             if reason is not None:
                 self._n_errors += 1
                 self._last_error = reason + (f"; {lost:,} unsent lines dropped" if lost else "")
         self._connected_event.clear()
-        if reason is None:
-            # Graceful: the controller reads every line we wrote, then end of stream.
-            with contextlib.suppress(OSError):
-                sock.shutdown(socket.SHUT_WR)
-        else:
-            # Abortive: what is still queued towards the controller is stale, and may end in
-            # half a line; a reset discards it instead of delivering it.
-            with contextlib.suppress(OSError):
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
-        sock.close()
+        # Graceful after a clean close: the controller reads every line we wrote. Abortive
+        # after a failure: what is still queued towards it is stale, maybe half a line.
+        close_socket(sock, abort=reason is not None)

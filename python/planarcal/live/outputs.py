@@ -1,4 +1,5 @@
-"""Where the production loop's lines go: stdout, a file, or a robot controller over TCP or UDP.
+"""Where the production loop's lines go: stdout, a file, a robot controller over TCP or UDP,
+or the controllers that connect to planarcal as a server.
 
 ``planarcal run`` emits one line of JSON per camera frame, hundreds per second for hours.
 ``open_output(spec)`` turns the ``-o`` argument into a sink; every sink keeps the same
@@ -31,19 +32,26 @@ The sinks:
     kept, reconnection with back-off, fresh data after a reconnect).
 ``udp://HOST:PORT``
     one datagram per line; see ``UdpOutput``.
+``tcp-listen://HOST:PORT``
+    planarcal listens; any number of controllers connect, each with its own bounded queue
+    (a slow one drops its own oldest lines, counted, and holds back no one); in trigger mode
+    each request line gets one answer. See ``ServerOutput``. Its counts are per client.
 anything else
     a file, appended to (created if absent); see ``FileOutput``.
 
 The modules: ``output_spec`` (reading the spec), ``output_sink`` (``Output``, the base every
 sink derives from, and ``OutputStats``), ``output_stream`` (stdout, pipes, files),
-``output_udp`` and ``output_tcp``. Everything is importable from here.
+``output_udp``, ``output_tcp``, ``output_server``, and ``output_socket`` (what the TCP sinks
+share). Everything is importable from here.
 """
 
 from __future__ import annotations
 
 import os
+from typing import Any
 
 from planarcal.errors import OutputError
+from planarcal.live.output_server import ClientStats, ServerOutput, ServerStats
 from planarcal.live.output_sink import Output, OutputStats
 from planarcal.live.output_spec import parse_network_spec
 from planarcal.live.output_stream import FileOutput, StreamOutput
@@ -51,10 +59,13 @@ from planarcal.live.output_tcp import TcpOutput
 from planarcal.live.output_udp import UdpOutput
 
 __all__ = [
+    "ClientStats",
     "FileOutput",
     "Output",
     "OutputError",
     "OutputStats",
+    "ServerOutput",
+    "ServerStats",
     "StreamOutput",
     "TcpOutput",
     "UdpOutput",
@@ -62,24 +73,33 @@ __all__ = [
 ]
 
 
-def open_output(spec: str | os.PathLike[str]) -> Output:
+def open_output(spec: str | os.PathLike[str], **server_options: Any) -> Output:
     """Opens the sink that ``spec`` names: ``-`` for stdout, ``tcp://HOST:PORT``,
-    ``udp://HOST:PORT`` (IPv6 addresses in brackets: ``tcp://[::1]:5000``), anything else a
-    file path to append to.
+    ``udp://HOST:PORT``, ``tcp-listen://HOST:PORT`` (IPv6 addresses in brackets:
+    ``tcp://[::1]:5000``), anything else a file path to append to. `server_options` go to
+    ``ServerOutput`` (trigger_word, max_pending_lines, ...) and only with tcp-listen.
 
     Raises OutputError for a malformed network spec or an unknown scheme (``ftp://...``), so
     that a typo fails at start-up rather than writing a file named after it; OSError naming
     the file when a file cannot be opened, or the host when a UDP host cannot be resolved. A
     TCP controller that is not listening yet is not an error: the sink keeps trying (see
-    ``TcpOutput.wait_connected``)."""
+    ``TcpOutput.wait_connected``). A server that cannot listen (the port in use, an address
+    not of this machine) raises OutputError naming it."""
+    network = parse_network_spec(spec) if isinstance(spec, str) and spec != "-" else None
+    if server_options and (network is None or network[0] != "tcp-listen"):
+        raise OutputError(
+            f"output {str(spec)!r}: {', '.join(sorted(server_options))} apply to a server "
+            "(tcp-listen://HOST:PORT) only"
+        )
     if not isinstance(spec, str):
         return FileOutput(spec)
     if spec == "-":
         return StreamOutput(1, "stdout")
-    network = parse_network_spec(spec)
     if network is None:
         return FileOutput(spec)
     scheme, host, port = network
+    if scheme == "tcp-listen":
+        return ServerOutput(host, port, **server_options)
     if scheme == "tcp":
         return TcpOutput(host, port)
     return UdpOutput(host, port)
