@@ -148,7 +148,8 @@ class LineFormat:
         message = " ".join(message.split())  # one line, whatever the message held
         if self.name == "json":
             t = time.time() if when is None else when
-            return json.dumps({"error": message, "t": round(t, 3)})
+            # Compact, like the frame lines; t to the microsecond, like theirs.
+            return json.dumps({"error": message, "t": round(t, 6)}, separators=(",", ":"))
         return "ERROR," + message.replace(",", ";")
 
     def __repr__(self) -> str:

@@ -200,8 +200,13 @@ class ServerOutput(Output):
     gets an error line instead (``error_line(message)``) when ``fault()`` says the source
     is down (at once, and while it waits), when no frame comes within ``trigger_timeout``
     seconds, when the server closes, or when more than 16 of the client's requests are
-    waiting. Any other line gets an error line naming the word. Every request gets exactly
-    one line. A client that closes its side gets its pending answers, then is let go.
+    waiting. Any other line gets an error line naming the word. Every line a client sends
+    (blank lines aside) gets exactly one line back, in the order sent (an error for a later
+    line waits behind an answer still owed), so a controller may pipeline requests and pair
+    the replies in order; one that sends more than 64 lines ahead of their replies is let
+    go. A client that closes its side gets the replies it is owed, then is let go. The
+    frame lines of the answers are made (``make_line``) only when a request waits: between
+    triggers the loop formats nothing.
 
     ``max_clients`` connections at most: one more gets an error line and is closed.
 
@@ -626,7 +631,7 @@ class ServerOutput(Output):
             client.n_requests += 1
             self._requests += 1
             waiting = len(client.requests)
-        fault = self._fault() if self._fault is not None else None
+        fault = self._source_fault()
         if fault is not None:
             self._reply_error(client, f"no frame to answer with: {fault}")
         elif waiting >= MAX_WAITING_REQUESTS:
@@ -693,7 +698,7 @@ class ServerOutput(Output):
                     "reading, or gone); reset the connection",
                 )
         if waiting:
-            fault = self._fault() if self._fault is not None else None
+            fault = self._source_fault()
             if fault is not None:
                 self._fail_requests(f"no frame to answer with: {fault}")
             else:
@@ -768,6 +773,16 @@ class ServerOutput(Output):
             self._gone.append(client.stats())
         self._set_interest(selector, client, 0)
         close_socket(client.sock, abort=reason is not None)
+
+    def _source_fault(self) -> str | None:
+        """Why the source cannot give a frame now (from ``fault``), or None. A ``fault``
+        that raises is a fault too: the selector thread must outlive it."""
+        if self._fault is None:
+            return None
+        try:
+            return self._fault()
+        except Exception as e:
+            return f"the state of the source is unknown ({e!r})"
 
     def _error(self, message: str) -> None:
         with self._lock:
