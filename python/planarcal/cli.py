@@ -1,4 +1,4 @@
-"""The `planarcal` command line: board, intrinsics, calibrate, locate, run, demo.
+"""The `planarcal` command line: board, intrinsics, calibrate, register, locate, run, demo.
 
 Exit status: 0 on success, 1 when the job fails (no board in view, a file that cannot be read
 or written: one clear line on stderr, no traceback), 2 for a malformed command line.
@@ -30,6 +30,8 @@ from planarcal.live.objects import locate_objects
 from planarcal.report import summary_json, summary_text, write_detection_failure, write_report
 from planarcal.report.drawing import draw_objects, png_bytes
 from planarcal.report.printable import CHECK_BAR_MM, PrintLayout, pitch_meaning, write_board
+from planarcal.robot import register_command
+from planarcal.robot.output_frame import FRAMES, checked_frame, objects_in_frame
 from planarcal.synth import demo
 
 # Errors the commands report in one line; anything else is a bug and keeps its traceback.
@@ -239,8 +241,11 @@ def _read_image(args: argparse.Namespace) -> Any:
 
 def _cmd_locate(args: argparse.Namespace) -> int:
     cal = Calibration.load(args.calibration)
+    frame = checked_frame(args.frame, cal.robot_frame)
     image = load_image(args.image)
-    objects = locate_objects(image, cal, height_mm=args.height, min_area_px=args.min_area)
+    objects = objects_in_frame(
+        locate_objects(image, cal, height_mm=args.height, min_area_px=args.min_area), cal, frame
+    )
     if args.annotate is not None:
         atomic_write(args.annotate, png_bytes(draw_objects(image, objects)))
     if args.json:
@@ -248,6 +253,7 @@ def _cmd_locate(args: argparse.Namespace) -> int:
             json.dumps(
                 {
                     "calibration_file": str(args.calibration),
+                    "coords": frame,
                     "objects": [
                         {
                             "id": o.id,
@@ -255,6 +261,7 @@ def _cmd_locate(args: argparse.Namespace) -> int:
                             "world_mm": None if o.world_mm is None else list(o.world_mm),
                             "world_std_mm": o.world_std_mm,
                             "area_px": o.area_px,
+                            "angle_deg": o.angle_deg,
                         }
                         for o in objects
                     ],
@@ -267,18 +274,31 @@ def _cmd_locate(args: argparse.Namespace) -> int:
     else:
         print(
             f"{'object':<8}{'image x':>10}{'image y':>10}{'X (mm)':>12}{'Y (mm)':>12}"
-            f"{'1-sigma (mm)':>14}"
+            f"{'1-sigma (mm)':>14}{'angle (deg)':>13}"
         )
         for o in objects:
             wx, wy = o.world_mm if o.world_mm is not None else (float("nan"),) * 2
             sd = float("nan") if o.world_std_mm is None else o.world_std_mm
+            # "-": too round for an axis.
+            angle = "-" if o.angle_deg is None else f"{o.angle_deg:.2f}"
             print(
                 f"ID:{o.id:<5}{o.centroid_px[0]:>10.1f}{o.centroid_px[1]:>10.1f}"
-                f"{wx:>12.3f}{wy:>12.3f}{sd:>14.4f}"
+                f"{wx:>12.3f}{wy:>12.3f}{sd:>14.4f}{angle:>13}"
             )
     if args.annotate is not None:
         print(f"Wrote {args.annotate}")
     return 0
+
+
+def _frame_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--frame",
+        choices=FRAMES,
+        default=None,
+        help="the positions' frame of reference: board (mm on the board) or robot (the "
+        "robot's base frame, from 'planarcal register'); default robot once the calibration "
+        "has a registration, else board",
+    )
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -407,6 +427,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the intrinsics as one JSON object")
     p.set_defaults(run=_cmd_intrinsics)
 
+    register_command.add_parser(commands)
+
     p = commands.add_parser(
         "locate",
         help="locate objects in mm with a calibration",
@@ -426,6 +448,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--annotate", type=Path, default=None, help="write the annotated image here")
     p.add_argument("--json", action="store_true", help="print the objects as one JSON object")
+    _frame_argument(p)
     p.set_defaults(run=_cmd_locate)
 
     p = commands.add_parser(
@@ -464,6 +487,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--min-area", type=float, default=None, help="smallest object outline area in px^2"
     )
+    _frame_argument(p)
     p.add_argument(
         "--max-reconnect",
         type=float,

@@ -163,6 +163,7 @@ def main(args: argparse.Namespace) -> int:
         max_frames=args.max_frames,
         max_reconnect_s=args.max_reconnect,
         detect_options=detect,
+        frame=args.frame,
     )
     try:
         output = open_output(args.output)

@@ -35,6 +35,12 @@ With a file or folder nothing is dropped: the reader waits for the loop.
 IDs: nearest-neighbour association in world coordinates. Each object of a frame takes the ID
 of the nearest track of the previous frames within ``max_jump_mm``, closest pairs first;
 objects left over start new tracks; a track unseen for more than ``max_missing`` frames ends.
+
+Positions are in the board's frame or, with ``frame="robot"`` (the default once the
+calibration has a registration), the robot's base frame. The association works in that
+frame; ``max_jump_mm`` means the same in either, since a rigid registration keeps distances
+(a similarity or affine one changes them by its scale, a fraction of a percent for a board
+printed true).
 """
 
 from __future__ import annotations
@@ -58,6 +64,8 @@ from planarcal.calib.calibration import Calibration
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, StateError
 from planarcal.live.capture import Camera, Frame
 from planarcal.live.objects import _detect, detect_objects
+from planarcal.live.part_angle import part_angles_deg
+from planarcal.robot.output_frame import Coords, checked_frame
 
 F64 = NDArray[np.float64]
 
@@ -206,10 +214,14 @@ class Tracker:
             never; a file or folder is never reopened).
         detect_options: passed to detect_objects (min_area_px, blur_sigma, mask, ...).
         timeout_s: the Camera's timeout for each blocking step.
+        frame: "board" or "robot", the frame of reference of the positions (and of
+            ``FrameResult.coords``); None (the default): "robot" if the calibration has a
+            registration to the robot, else "board".
 
     Raises:
         FrameSizeError: the source's frames are not of the size the calibration was made on.
         IntrinsicsError: a height_mm with a calibration made without camera intrinsics.
+        ArgumentError: frame="robot" with a calibration that has no registration.
     """
 
     def __init__(
@@ -224,6 +236,7 @@ class Tracker:
         max_reconnect_s: float | None = None,
         detect_options: dict[str, Any] | None = None,
         timeout_s: float = 5.0,
+        frame: Coords | None = None,
     ) -> None:
         if not isinstance(calibration, Calibration):
             calibration = Calibration.load(calibration)
@@ -250,8 +263,11 @@ class Tracker:
             raise ArgumentError(
                 f"unknown detect_options {unknown}; detect_objects takes {sorted(_DETECT_OPTIONS)}"
             )
-        # Checked before the source is opened: a height needs the camera's pose.
-        self._map = calibration._frame_mapper(self.height_mm)
+        self.frame: Coords = checked_frame(frame, calibration.robot_frame)
+        """The frame of reference of the positions: "board" or "robot"."""
+        # Checked before the source is opened: a height needs the camera's pose, the robot's
+        # frame a registration.
+        self._map = calibration._frame_mapper(self.height_mm, self.frame)
         self._frame_size = calibration.image_size
         self.stats = LoopStats()
         self._timeout_s = timeout_s
@@ -352,8 +368,10 @@ class Tracker:
         t2 = time.perf_counter()
         stage["map"] += t2 - t1
         ids = self._tracks.update(mm)
-        angles = np.full(len(px), np.nan)  # issue 14: each part's angle
-        result = FrameResult(index, stamp, ids, px, mm, std, found.areas, angles, "board")
+        # Each part's axis in the output frame: its moments turned through the Jacobian of
+        # the positions' own mapping at its centroid (one more call, on 4 points per part).
+        angles = part_angles_deg(found.moments, found.areas, px, lambda p: self._map(p)[0])
+        result = FrameResult(index, stamp, ids, px, mm, std, found.areas, angles, self.frame)
         stage["track"] += time.perf_counter() - t2
         return result
 

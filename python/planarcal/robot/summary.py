@@ -96,7 +96,7 @@ def _verdict(frame: RobotFrame) -> list[str]:
         action = (
             "left out of the fit"
             if frame.dropped_outliers
-            else "kept in the fit (drop_outliers=True leaves them out)"
+            else "kept in the fit (--drop-outliers, or drop_outliers=True, leaves them out)"
         )
         out.append(
             f"Point(s) {names}: leave-one-out error above {frame.outlier_threshold_mm:.3g} mm, "
