@@ -73,7 +73,9 @@ def board_to_robot(
 def angle_to_robot(registration: RobotFrame, angle_deg: F64) -> F64:
     """Axis angles (degrees, from the board's x axis towards its y axis) as angles in the
     robot frame, in [-90, 90): each axis turned through the map's linear part (a mirror
-    reverses the sense of the angle). NaN (no axis) stays NaN."""
+    reverses the sense of the angle). Exact for rigid and similarity maps; for an affine one
+    it is the board axis's image, which a shear turns slightly off the principal axis of the
+    mapped area. NaN (no axis) stays NaN."""
     a = np.radians(np.asarray(angle_deg, dtype=np.float64))
     direction = np.stack([np.cos(a), np.sin(a)], axis=-1) @ registration.plane_to_robot[:2, :2].T
     turned = np.degrees(np.arctan2(direction[..., 1], direction[..., 0]))
