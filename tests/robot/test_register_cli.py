@@ -140,11 +140,15 @@ def test_malformed_csv_is_refused_naming_the_line(tmp_path: Path, text: str, mat
         read_touch_csv(_write(tmp_path / "t.csv", text))
 
 
-def test_a_file_that_is_not_text_is_refused(tmp_path: Path) -> None:
+def test_a_file_that_is_not_text_or_not_there_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "t.csv"
     path.write_bytes(b"dot,robot_x,robot_y\n\xff\xfe1,2,3\n")
     with pytest.raises(pc.ArgumentError, match="not a UTF-8 text file"):
         read_touch_csv(path)
+    with pytest.raises(pc.ArgumentError, match="no touch-point file at"):
+        read_touch_csv(tmp_path / "missing.csv")
+    with pytest.raises(pc.ArgumentError, match="cannot read the touch-point file"):
+        read_touch_csv(tmp_path)
 
 
 # -- the command ------------------------------------------------------------------------------

@@ -4,7 +4,12 @@
 ``registration`` holds ``RobotFrame`` (the fit and what it reports), ``transform_fit`` the
 closed-form rigid, similarity and affine fits and the checks that refuse too few or too
 clustered points, ``outliers`` the leave-one-out errors and the touches they name,
-``plane_height`` the plane's height and tilt from the robot's z, ``summary`` the fit in words.
+``plane_height`` the plane's height and tilt from the robot's z, ``summary`` the fit in words,
+``prediction_error`` the fitted map's own 1-sigma at any board point. Around the fit:
+``touch_pairs`` turns dot indices, board mm or N-point image px into board points through a
+calibration, ``output_frame`` maps board positions (and their 1-sigma and angles) into the
+robot's frame for ``Calibration.image_to_world(frame=...)``, the Tracker and ``locate``,
+``touch_csv`` reads the touch-point CSV and ``register_command`` is ``planarcal register``.
 """
 
 from planarcal.robot.plane_height import TILT_WARNING_MM, PlaneHeight

@@ -72,13 +72,18 @@ class TouchPoints:
 
 def read_touch_csv(path: str | os.PathLike[str]) -> TouchPoints:
     """The pairs in the touch-point CSV at ``path``; ArgumentError naming the line for
-    anything that cannot be read as one of the column sets, OSError if it cannot be read."""
+    anything that cannot be read as one of the column sets, or naming the file if it cannot
+    be read at all."""
     p = Path(path)
     name = str(p)
     try:
         text = p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as e:
         raise ArgumentError(f"{name}: not a UTF-8 text file ({e.reason})") from None
+    except FileNotFoundError:
+        raise ArgumentError(f"no touch-point file at {name!r}") from None
+    except OSError as e:
+        raise ArgumentError(f"cannot read the touch-point file {name!r}: {e.strerror}") from None
     rows = [
         (number, line)
         for number, line in enumerate(text.splitlines(), start=1)
