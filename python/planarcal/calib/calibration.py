@@ -395,19 +395,11 @@ class Calibration:
             raise ArgumentError(
                 f"robot_frame must be a RobotFrame or None, got {type(robot_frame).__name__}"
             )
+        # A copy of everything else as it is (the fit and what was computed from it): only
+        # the registration differs, and nothing in the board frame depends on it.
         cal = Calibration.__new__(Calibration)
-        cal._init(
-            self._world,
-            self._image,
-            self._fit,
-            self.solver,
-            self.refine,
-            self.board,
-            self.image_size,
-            self.intrinsics,
-            self.world_scale,
-            robot_frame,
-        )
+        cal.__dict__.update(self.__dict__)
+        cal.robot_frame = robot_frame
         return cal
 
     def register(
