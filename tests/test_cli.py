@@ -258,11 +258,24 @@ def test_locate_gives_objects_in_millimetres(
     for o in found:
         gap = np.linalg.norm(truth - np.array(o["world_mm"]), axis=1).min()
         assert gap < 0.6, o
+        # Each bolt's axis on the board, as it was placed (folded into [-90, 90)); the nuts
+        # are too round for one (null).
+        placed = scene.objects.objects[
+            int(np.argmin(np.linalg.norm(truth - o["world_mm"], axis=1)))
+        ]
+        if placed.kind == "bolt":
+            turn = (o["angle_deg"] - placed.angle_deg + 90.0) % 180.0 - 90.0
+            assert -90.0 <= o["angle_deg"] < 90.0 and abs(turn) < 0.5, o
+        else:
+            assert o["angle_deg"] is None, o
     picture = cv2.imread(str(annotated))
     assert picture is not None and picture.shape[:2] == scene.objects.image.shape[:2]
     # The readable table: one row per object.
     table = _run("locate", images["objects"], "--calibration", cal_path).stdout
-    assert len([line for line in table.splitlines() if line.startswith("ID:")]) == 10
+    rows = [line for line in table.splitlines() if line.startswith("ID:")]
+    assert len(rows) == 10 and "angle (deg)" in table
+    # The angle is the last column: three bolts have one, the seven nuts "-".
+    assert sorted(row.split()[-1] == "-" for row in rows) == [False] * 3 + [True] * 7
 
 
 def test_locate_refuses_a_corrupt_calibration(images: dict[str, Path], tmp_path: Path) -> None:

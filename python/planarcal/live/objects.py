@@ -3,13 +3,16 @@ contours, centroid from image moments), with the filters a real scene needs, and
 millimetre step through a calibration (its Table 5).
 
 An object is a closed outline: its centroid is that of the area the outline encloses, from the
-contour's moments (holes, such as a nut's, are symmetric on common parts and do not move it).
-IDs follow reading order: rows of objects from the top of the image, left to right in a row.
+contour's moments (holes, such as a nut's, are symmetric on common parts and do not move it),
+and its angle the principal axis of that area's second moments, in the frame its position is
+given in (``part_angle``: None for a part too round for an axis). IDs follow reading order:
+rows of objects from the top of the image, left to right in a row.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import cv2
@@ -20,6 +23,7 @@ from planarcal import _core
 from planarcal.errors import ImageError
 from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
+from planarcal.live.part_angle import PartAxes, jacobians, part_axes
 
 if TYPE_CHECKING:
     from planarcal.calib.calibration import Calibration
@@ -44,6 +48,15 @@ class DetectedObject:
     """The centroid on the plane, mm, when located through a calibration."""
     world_std_mm: float | None = None
     """The calibration's 1-sigma uncertainty of world_mm (RMS distance, mm)."""
+    angle_deg: float | None = None
+    """The part's principal axis in the frame of its position, degrees in [-90, 90), from that
+    frame's +x towards its +y: on the board (world_mm's frame) from locate_objects, in the
+    image (from +x, right, towards +y, down) from detect_objects, which has no plane to turn
+    it onto. None where the part is too round for an axis (discs, nuts, squares: see
+    planarcal.live.part_angle)."""
+    axis_px: tuple[float, float] | None = None
+    """The unit direction in the image along which that axis lies (for drawing it); None
+    with angle_deg."""
 
 
 def detect_objects(
@@ -73,6 +86,9 @@ def detect_objects(
       across the outline, to a fraction of a pixel) before the centroid is taken; the
       paper's chain (``False``) takes the centroid of the traced edge pixels, which sit a
       pixel or so outside the edge and are quantised to whole pixels (0.1-0.3 px off).
+
+    Each object's ``angle_deg`` is its axis in the image (see DetectedObject);
+    locate_objects gives it on the plane.
     """
     found = _detect(
         image,
@@ -85,16 +101,27 @@ def detect_objects(
         keep_border=keep_border,
         subpixel=subpixel,
     )
-    return [
-        DetectedObject(
-            i + 1,
-            (float(found.centroids[i, 0]), float(found.centroids[i, 1])),
-            float(found.areas[i]),
-            found.outlines[i],
-            (int(b[0]), int(b[1]), int(b[2]), int(b[3])),
+    return _objects(found, part_axes(found.moments, found.areas))
+
+
+def _objects(found: Found, axes: PartAxes) -> list[DetectedObject]:
+    """Found's rows as objects, with their axes."""
+    out = []
+    for i, b in enumerate(found.bboxes):
+        angle = float(axes.angles_deg[i])
+        defined = math.isfinite(angle)
+        out.append(
+            DetectedObject(
+                i + 1,
+                (float(found.centroids[i, 0]), float(found.centroids[i, 1])),
+                float(found.areas[i]),
+                found.outlines[i],
+                (int(b[0]), int(b[1]), int(b[2]), int(b[3])),
+                angle_deg=angle if defined else None,
+                axis_px=(float(axes.axes_px[i, 0]), float(axes.axes_px[i, 1])) if defined else None,
+            )
         )
-        for i, b in enumerate(found.bboxes)
-    ]
+    return out
 
 
 class Found(NamedTuple):
@@ -201,7 +228,9 @@ def locate_objects(
     image: Any, calibration: Calibration, *, height_mm: float = 0.0, **options: Any
 ) -> list[DetectedObject]:
     """detect_objects, with each centroid mapped to the plane in mm through `calibration`
-    (the paper's Table 5), with its 1-sigma uncertainty (``world_std_mm``). Objects whose
+    (the paper's Table 5), with its 1-sigma uncertainty (``world_std_mm``), and each part's
+    angle on the board (``angle_deg``: its axis's second moments turned through the
+    calibration's local Jacobian, see planarcal.live.part_angle). Objects whose
     outlines are ``height_mm`` above the plane (the top face of parts of that height) are
     located where they really are, which needs a calibration with camera intrinsics.
     Options are those of detect_objects.
@@ -210,14 +239,19 @@ def locate_objects(
     was made on (see ``Calibration.check_image_size``)."""
     grey = _grey_u8(image)
     calibration.check_image_size((grey.shape[1], grey.shape[0]))
-    objects = detect_objects(grey, **options)
-    if not objects:
+    found = _detect(grey, **options)
+    if not len(found.areas):
         return []
-    px = np.array([o.centroid_px for o in objects])
+    px = found.centroids
+
+    def to_board(points: F64) -> F64:
+        return np.asarray(calibration.image_to_world(points, height=height_mm), dtype=np.float64)
+
     mm, std = calibration.image_to_world(px, height=height_mm, return_std=True)
+    axes = part_axes(found.moments, found.areas, jacobians(to_board, px))
     return [
         dataclasses.replace(o, world_mm=(float(x), float(y)), world_std_mm=float(s))
-        for o, (x, y), s in zip(objects, mm, std, strict=True)
+        for o, (x, y), s in zip(_objects(found, axes), mm, std, strict=True)
     ]
 
 

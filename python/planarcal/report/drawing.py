@@ -192,15 +192,24 @@ def _text_width(text: str, s: float) -> int:
     return int(w)
 
 
+# The colour (BGR) of a part's axis.
+AXIS_BGR = (255, 0, 200)
+
+
 def draw_objects(image: Any, objects: Sequence[Any]) -> U8:
     """The image with each object's outline, centroid, ID and (when located) its position in
-    mm."""
+    mm, and, where it has one, its axis: a line through the centroid along the image
+    direction of its principal axis (``axis_px``), a little longer than the part, and its
+    angle (``angle_deg``, in the frame of its position) in the label."""
     canvas = _canvas(image)
     s = _scale(canvas)
     for o in objects:
         contour = np.rint(o.contour_px).astype(np.int32).reshape(-1, 1, 2)
         cv2.drawContours(canvas, [contour], -1, (0, 200, 255), max(1, int(s)), cv2.LINE_AA)
         cx, cy = o.centroid_px
+        axis = getattr(o, "axis_px", None)
+        if axis is not None:
+            _draw_axis(canvas, o.contour_px, (cx, cy), axis, s)
         cv2.drawMarker(
             canvas,
             (round(cx), round(cy)),
@@ -213,9 +222,38 @@ def draw_objects(image: Any, objects: Sequence[Any]) -> U8:
         text = f"ID:{o.id}"
         if o.world_mm is not None:
             text += f" ({o.world_mm[0]:.1f}, {o.world_mm[1]:.1f}) mm"
+        angle = getattr(o, "angle_deg", None)
+        if angle is not None:
+            text += f" {angle:.1f} deg"
         x, y, _, _ = o.bbox_px
         _label(canvas, text, (x, max(int(15 * s), y - int(6 * s))), s)
     return canvas
+
+
+def _draw_axis(
+    canvas: U8,
+    contour_px: Any,
+    centre: tuple[float, float],
+    axis: tuple[float, float],
+    s: float,
+) -> None:
+    """A line through `centre` along the unit image direction `axis`, reaching 15 % beyond
+    the outline's farthest point along it on either side."""
+    c = np.array(centre, dtype=np.float64)
+    d = np.array(axis, dtype=np.float64)
+    outline = np.asarray(contour_px, dtype=np.float64).reshape(-1, 2)
+    reach = 1.15 * float(np.abs((outline - c) @ d).max()) if len(outline) else 10.0 * s
+    f = 16.0  # sub-pixel drawing: coordinates in 1/16 px
+    ends = [np.rint((c + k * reach * d) * f).astype(int) for k in (-1.0, 1.0)]
+    cv2.line(
+        canvas,
+        (int(ends[0][0]), int(ends[0][1])),
+        (int(ends[1][0]), int(ends[1][1])),
+        AXIS_BGR,
+        max(1, int(s)),
+        cv2.LINE_AA,
+        4,
+    )
 
 
 def _label(canvas: U8, text: str, org: tuple[int, int], s: float) -> None:
