@@ -466,11 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="camera index (0), video file, image folder or stream URL",
     )
     p.add_argument("--calibration", required=True, type=Path, help="file from 'calibrate'")
-    p.add_argument(
-        "--output",
-        default="-",
-        help="- (stdout, the default), a file (.jsonl), tcp://host:port or udp://host:port",
-    )
+    run.add_output_arguments(p)
     p.add_argument(
         "--max-frames",
         type=int,

@@ -1,10 +1,13 @@
 """`planarcal run`: the production loop as a command.
 
 Frames from ``--source`` (a camera index, video file, image folder or stream URL) go through a
-``Tracker`` with ``--calibration``; each frame becomes one JSON line on ``--output`` (stdout,
-a file, or a TCP/UDP peer such as a robot controller). A live progress line (frames, fps,
-objects, drops) is drawn on stderr when it is a terminal. Ctrl-C or SIGTERM end the loop after
-the frame in hand: what was written is flushed, and a summary goes to stderr.
+``Tracker`` with ``--calibration``; each frame becomes one line (``--format json``, ``csv`` or
+a ``--template``: see ``line_format``) on ``--output``: stdout, a file, a TCP/UDP peer such as
+a robot controller, or ``tcp-listen://HOST:PORT``, where planarcal is the server that
+controllers connect to, each reading every frame or, with ``--trigger``, asking for one frame
+at a time (see ``output_server``). A live progress line (frames, fps, objects, drops) is drawn
+on stderr when it is a terminal. Ctrl-C or SIGTERM end the loop after the frame in hand: what
+was written is flushed, and a summary goes to stderr.
 
 Exit status 1 (after the summary) when every frame read failed, with the count and the first
 and last fault on stderr; at once, before any frame, when the source's frames are not of the
@@ -16,8 +19,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import functools
 import json
 import logging
+import math
 import signal
 import sys
 import time
@@ -25,6 +30,10 @@ from collections.abc import Iterator
 from typing import Any, TextIO
 
 from planarcal.calib.calibration import Calibration
+from planarcal.errors import OutputError
+from planarcal.live.line_format import FIELDS, FORMATS, LineFormat, line_format
+from planarcal.live.output_server import ServerOutput, check_trigger_word
+from planarcal.live.output_spec import parse_network_spec
 from planarcal.live.outputs import open_output
 from planarcal.live.tracker import LoopStats, Tracker
 
@@ -140,6 +149,118 @@ def stage_report(stats: LoopStats, serialise_s: float) -> str:
     return "\n".join(lines)
 
 
+def add_output_arguments(p: argparse.ArgumentParser) -> None:
+    """The run command's output arguments: where the lines go, their format, trigger mode."""
+    g = p.add_argument_group("output (where the lines go, and what they look like)")
+    g.add_argument(
+        "-o",
+        "--output",
+        default="-",
+        help="- (stdout, the default), a file (appended to), tcp://HOST:PORT or udp://HOST:PORT "
+        "(a controller listening there), or tcp-listen://HOST:PORT (planarcal listens; any "
+        "number of controllers connect; port 0: any free port, printed on stderr)",
+    )
+    g.add_argument(
+        "--format",
+        choices=FORMATS,
+        default=None,
+        help="json (the default), csv (frame,t,coords,n then id,x,y,angle,std per object, one "
+        "line per frame), or template (with --template)",
+    )
+    g.add_argument(
+        "--template",
+        default=None,
+        metavar="TEMPLATE",
+        help="each object as this Python format string, after frame,t,coords,n on the frame's "
+        "line, e.g. '{id},{x:.2f},{y:.2f},{angle:.1f}'; fields: " + ", ".join(FIELDS),
+    )
+    g.add_argument(
+        "--trigger",
+        action="store_true",
+        help="with tcp-listen: send nothing unrequested; answer each request line from a "
+        "client with the next frame read after it (or an error line)",
+    )
+    g.add_argument(
+        "--trigger-word",
+        default=None,
+        metavar="WORD",
+        help="the request line (case-sensitive; default TRIGGER); any other line gets an "
+        "error line",
+    )
+    g.add_argument(
+        "--trigger-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="answer a request with an error line when no frame comes within S seconds (default 3)",
+    )
+    g.add_argument(
+        "--client-buffer",
+        type=int,
+        default=None,
+        metavar="LINES",
+        help="with tcp-listen: lines queued for each client at most (default 256); beyond, a "
+        "slow client's oldest lines are dropped and counted",
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class OutputPlan:
+    """The output arguments, checked: what to open and how to write each frame."""
+
+    spec: str
+    format: LineFormat
+    server: dict[str, Any]
+    """ServerOutput's options (tcp-listen only; empty otherwise)."""
+    trigger: bool
+
+
+def output_plan(args: argparse.Namespace) -> OutputPlan:
+    """Checks the output arguments before anything is opened: OutputError (naming the
+    argument) for a malformed spec or template, --trigger without tcp-listen, or an option
+    that goes with another one that is absent."""
+    spec = str(args.output)
+    network = parse_network_spec(spec)
+    listening = network is not None and network[0] == "tcp-listen"
+    fmt = line_format(args.format, args.template)
+    server: dict[str, Any] = {}
+    if args.trigger:
+        if not listening:
+            raise OutputError(
+                f"--trigger needs --output tcp-listen://HOST:PORT, not {spec!r}: controllers "
+                "send their requests to planarcal as the server"
+            )
+        word = "TRIGGER" if args.trigger_word is None else args.trigger_word
+        check_trigger_word(word)
+        timeout = 3.0 if args.trigger_timeout is None else args.trigger_timeout
+        if not (math.isfinite(timeout) and timeout > 0):
+            raise OutputError(
+                f"--trigger-timeout must be a positive number of seconds, not {timeout}"
+            )
+        server.update(trigger_word=word, trigger_timeout=timeout, error_line=fmt.error)
+    else:
+        for name, value in (
+            ("--trigger-word", args.trigger_word),
+            ("--trigger-timeout", args.trigger_timeout),
+        ):
+            if value is not None:
+                raise OutputError(f"{name} goes with --trigger")
+    if args.client_buffer is not None:
+        if not listening:
+            raise OutputError(f"--client-buffer goes with --output tcp-listen://, not {spec!r}")
+        if args.client_buffer < 1:
+            raise OutputError(f"--client-buffer must be at least 1 line, not {args.client_buffer}")
+        server["max_pending_lines"] = args.client_buffer
+    return OutputPlan(spec, fmt, server, bool(args.trigger))
+
+
+def _source_fault(tracker: Tracker) -> str | None:
+    """Why a trigger cannot be answered now, or None: the camera is being reopened."""
+    if tracker.source_lost:
+        return "the camera is not delivering frames (planarcal is reopening it)"
+    return None
+
+
 def main(args: argparse.Namespace) -> int:
     # The tracker's fault log (a source lost and reopened, frames skipped) goes to stderr, like
     # the summary, unless the application set up logging itself.
@@ -149,6 +270,9 @@ def main(args: argparse.Namespace) -> int:
         handler.setFormatter(logging.Formatter("planarcal run: %(message)s"))
         log.addHandler(handler)
         log.setLevel(logging.INFO)
+    # The output's arguments first: a typo in a spec or a template fails before the camera
+    # is opened.
+    plan = output_plan(args)
     calibration = Calibration.load(args.calibration)
     source: int | str = int(args.source) if args.source.isdigit() else args.source
     detect: dict[str, Any] = {}
@@ -166,17 +290,27 @@ def main(args: argparse.Namespace) -> int:
         frame=args.frame,
     )
     try:
-        output = open_output(args.output)
+        if plan.server:
+            plan.server["fault"] = functools.partial(_source_fault, tracker)
+        output = open_output(plan.spec, **plan.server)
     except BaseException:
         tracker.close()
         raise
+    if isinstance(output, ServerOutput):
+        mode = f"; trigger mode: send {output.trigger_word}" if plan.trigger else ""
+        print(f"planarcal run: listening on {output.address}{mode}", file=sys.stderr, flush=True)
+    fmt = plan.format
     progress = Progress(sys.stderr)
     serialise_s = 0.0
     with stop_on_signals(tracker) as received:
         try:
             for result in tracker:
                 t0 = time.perf_counter()
-                output.send(result.to_json())
+                if plan.trigger and isinstance(output, ServerOutput):
+                    # Only a frame that a request waits for is formatted.
+                    output.answer(result.timestamp, functools.partial(fmt.frame, result))
+                else:
+                    output.send(fmt.frame(result))
                 serialise_s += time.perf_counter() - t0
                 if getattr(output, "broken", False):
                     tracker.stop()  # the reader of stdout went away: nothing left to do

@@ -382,6 +382,13 @@ class Tracker:
         ids, mm = self._tracks.live()
         return dict(zip(ids.tolist(), map(tuple, mm.tolist()), strict=True))
 
+    @property
+    def source_lost(self) -> bool:
+        """True while the source delivers nothing because it is not open: not there yet at
+        start, or stopped and being reopened (safe from any thread)."""
+        camera = self._camera
+        return camera is None or camera.closed
+
     def stop(self) -> None:
         """Ends the iteration after the frame in hand (safe from a signal handler or another
         thread)."""
