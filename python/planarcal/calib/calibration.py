@@ -50,6 +50,7 @@ from planarcal.calib import calibration_file, frame_size
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration_file import FILE_FORMAT, FILE_VERSION, READS_VERSIONS
 from planarcal.calib.detect import detect_board
+from planarcal.calib.error_budget import ErrorBudget, with_budget
 from planarcal.calib.leave_one_out import homography_leave_one_out
 from planarcal.calib.lens_choice import (
     LENS_MARGIN,
@@ -202,7 +203,11 @@ class Calibration:
     ) -> None:
         self._world = world
         self._image = image
-        self._fit = fit
+        # The error bars' terms beyond the fit's covariance, recomputed from the points (files
+        # do not store them); the plane then includes the model's bias in every uncertainty.
+        self._fit, budget = with_budget(fit, world, image, board, intrinsics)
+        self.error_budget: ErrorBudget = budget
+        """What std_mm covers beyond the fit's covariance (see calib.error_budget)."""
         self._h = np.array(fit.h, dtype=np.float64)
         self._h.setflags(write=False)
         self._world.setflags(write=False)

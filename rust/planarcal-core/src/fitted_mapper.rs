@@ -1,7 +1,9 @@
 //! A fitted plane ready to map pixels: each pixel's place on the plane by the fast
-//! `PlaneMapper`, and its uncertainty from the fit (`uncertainty::world_covariance`). The
-//! bindings' `FittedPlane` maps through it, so positions and their errors come from one call
-//! into the core, with the reference's failures (`InversePlane::map`) on the same pixels.
+//! `PlaneMapper`, and its uncertainty from the fit (`uncertainty::world_covariance`) and from
+//! the model's bias (`with_model_sigma`: what the fit's covariance cannot see, an error shared
+//! by a pixel and its neighbours, given in px per coordinate). The bindings' `FittedPlane`
+//! maps through it, so positions and their errors come from one call into the core, with the
+//! reference's failures (`InversePlane::map`) on the same pixels.
 
 use std::sync::OnceLock;
 
@@ -30,6 +32,9 @@ pub enum UncertaintyError {
     /// The pixels' own noise is negative, NaN or infinite.
     #[error("pixel_sigma must be a finite number >= 0, got {0}")]
     InvalidPixelSigma(f64),
+    /// The model's bias is negative, NaN or infinite.
+    #[error("the model's bias (model_sigma_px) must be a finite number >= 0, got {0}")]
+    InvalidModelSigma(f64),
     /// As many parameters as coordinates: the residuals say nothing of the noise.
     #[error(
         "the fit has no residual degrees of freedom (as many parameters as coordinates), so \
@@ -48,6 +53,8 @@ pub struct FittedMapper {
     reference: InversePlane,
     /// The fit's parameter covariance; None without residual degrees of freedom.
     covariance: Option<MatP>,
+    /// The model's bias, px per coordinate: added to every pixel's own noise in quadrature.
+    model_sigma: f64,
     /// Built on first use: its lens inverse costs about a millisecond (twice a fit), and a
     /// calibration fits several models to keep one.
     mapper: OnceLock<PlaneMapper>,
@@ -66,8 +73,27 @@ impl FittedMapper {
             image_size,
             reference,
             covariance,
+            model_sigma: 0.0,
             mapper: OnceLock::new(),
         })
+    }
+
+    /// This mapper with the model's bias `sigma_px` (px per coordinate, isotropic in the
+    /// image): the error a pixel's mapping has beyond the fit's covariance, because the model
+    /// (the lens, or the dot centres it was fitted to) is off by a smooth field the residuals
+    /// do not show. Every uncertainty then adds it to the pixel's own noise in quadrature:
+    /// sigma^2 = pixel_sigma^2 + sigma_px^2. Refused unless finite and >= 0.
+    pub fn with_model_sigma(mut self, sigma_px: f64) -> Result<Self, UncertaintyError> {
+        if !(sigma_px >= 0.0 && sigma_px.is_finite()) {
+            return Err(UncertaintyError::InvalidModelSigma(sigma_px));
+        }
+        self.model_sigma = sigma_px;
+        Ok(self)
+    }
+
+    /// The model's bias, px per coordinate (0 unless `with_model_sigma` set it).
+    pub fn model_sigma(&self) -> f64 {
+        self.model_sigma
     }
 
     /// The fit it maps through.
@@ -94,8 +120,9 @@ impl FittedMapper {
     }
 
     /// As `map_into`, with each point's 1-sigma error in `std` (mm): the square root of the
-    /// trace of its covariance (`world_covariance`), the RMS distance from the truth. NaN
-    /// where the pixel has no place on the plane. Maps the first min of the three lengths.
+    /// trace of its covariance (`world_covariance`, the pixel's noise `pixel_sigma` and the
+    /// model's bias added in quadrature), the RMS distance from the truth. NaN where the
+    /// pixel has no place on the plane. Maps the first min of the three lengths.
     pub fn map_with_std_into(
         &self,
         px: &[Point],
@@ -109,7 +136,8 @@ impl FittedMapper {
     }
 
     /// As `map_into`, with each point's covariance (mm^2, row-major 2 x 2) in `cov`:
-    /// `world_covariance`. NaN where the pixel has no place on the plane.
+    /// `world_covariance`, with the pixel's noise and the model's bias in quadrature. NaN
+    /// where the pixel has no place on the plane.
     pub fn map_with_covariance_into(
         &self,
         px: &[Point],
@@ -143,6 +171,8 @@ impl FittedMapper {
         each: impl Fn(Option<Matrix2<f64>>) -> T + Sync,
     ) -> Result<PointReport, UncertaintyError> {
         let cov = self.parameter_covariance(pixel_sigma)?;
+        // The model's bias moves a pixel's place as its own noise does: through d(world)/d(px).
+        let pixel_sigma = pixel_sigma.hypot(self.model_sigma);
         let n = px.len().min(out.len()).min(extra.len());
         let (px, out, extra) = (&px[..n], &mut out[..n], &mut extra[..n]);
         let report = self.map_into(px, out);
@@ -292,6 +322,41 @@ mod tests {
                 assert_eq!(o[k][0].to_bits(), out[start + k][0].to_bits());
                 assert_eq!(s[k].to_bits(), std[start + k].to_bits());
             }
+        }
+    }
+
+    #[test]
+    fn the_models_bias_adds_to_the_pixels_noise_in_quadrature() {
+        let plain = FittedMapper::new(fitted(LensParams::K1), SIZE).unwrap(); // ok: test-only
+        assert_eq!(plain.model_sigma(), 0.0);
+        let biased = plain.clone().with_model_sigma(0.03).unwrap(); // ok: test-only, valid
+        assert_eq!(biased.model_sigma(), 0.03);
+        let px = pixels();
+        let n = px.len();
+        let run = |m: &FittedMapper, sigma: f64| {
+            let (mut out, mut std) = (vec![[0.0; 2]; n], vec![0.0; n]);
+            m.map_with_std_into(&px, sigma, &mut out, &mut std).unwrap(); // ok: test-only
+            (out, std)
+        };
+        let (out, std) = run(&biased, 0.04);
+        let (same_out, same_std) = run(&plain, 0.05);
+        let (plain_out, plain_std) = run(&plain, 0.0);
+        for k in 0..n {
+            // Positions are untouched; the std is that of a pixel noise of hypot(0.04, 0.03).
+            assert_eq!(out[k][0].to_bits(), plain_out[k][0].to_bits());
+            if std[k].is_nan() {
+                assert!(same_std[k].is_nan());
+                continue;
+            }
+            assert!((std[k] / same_std[k] - 1.0).abs() < 1e-12, "{k}");
+            assert!(std[k] > plain_std[k]);
+            assert_eq!(out[k][1].to_bits(), same_out[k][1].to_bits());
+        }
+        for bad in [-0.1, f64::NAN, f64::INFINITY] {
+            assert!(matches!(
+                plain.clone().with_model_sigma(bad),
+                Err(UncertaintyError::InvalidModelSigma(_))
+            ));
         }
     }
 

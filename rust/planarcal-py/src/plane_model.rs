@@ -49,7 +49,9 @@ fn array2<'py>(py: Python<'py>, rows: Vec<f64>, cols: &[usize]) -> PyResult<Boun
 
 fn uncertainty_to_py(e: UncertaintyError) -> PyErr {
     match e {
-        UncertaintyError::InvalidPixelSigma(_) => invalid(e.to_string()),
+        UncertaintyError::InvalidPixelSigma(_) | UncertaintyError::InvalidModelSigma(_) => {
+            invalid(e.to_string())
+        }
         UncertaintyError::NoResidualDof => LensModelError::new_err(e.to_string()),
     }
 }
@@ -149,6 +151,31 @@ impl FittedPlane {
         let (w, d) = (pairs(world, "world")?, pairs(image, "image")?);
         let fit = plane_fit_at(&model, &w, &d, free, size(image_size)).map_err(lens_to_py)?;
         FittedPlane::new(fit, w, d, size(image_size))
+    }
+
+    /// with_model_sigma(sigma_px)
+    /// --
+    ///
+    /// This plane with the model's bias of sigma_px px per coordinate: every uncertainty it
+    /// gives (image_to_world_std, world_covariance) adds it to the pixels' own noise in
+    /// quadrature. Positions are unchanged.
+    fn with_model_sigma(&self, sigma_px: f64) -> PyResult<Self> {
+        Ok(FittedPlane {
+            mapping: self
+                .mapping
+                .clone()
+                .with_model_sigma(sigma_px)
+                .map_err(uncertainty_to_py)?,
+            world: self.world.clone(),
+            image: self.image.clone(),
+        })
+    }
+
+    /// The model's bias its uncertainties include, px per coordinate (0 unless set by
+    /// with_model_sigma).
+    #[getter]
+    fn model_sigma_px(&self) -> f64 {
+        self.mapping.model_sigma()
     }
 
     /// World (mm) -> ideal pixels, 3 x 3, oriented.
@@ -265,7 +292,8 @@ impl FittedPlane {
     /// --
     ///
     /// Covariance (N x 2 x 2, mm^2) of the plane points the pixels map to: the fit's
-    /// uncertainty, plus the pixels' own noise of pixel_sigma px per coordinate.
+    /// uncertainty, plus the pixels' own noise of pixel_sigma px per coordinate and the
+    /// model's bias (model_sigma_px), in quadrature.
     #[pyo3(signature = (px, pixel_sigma = 0.0))]
     fn world_covariance<'py>(
         &self,
@@ -283,7 +311,7 @@ impl FittedPlane {
     /// --
     ///
     /// (mm (N x 2), std_mm (N,)) in one pass: each pixel's place on the plane and its
-    /// 1-sigma error (sqrt of the covariance's trace); raises like image_to_world.
+    /// 1-sigma error (sqrt of world_covariance's trace); raises like image_to_world.
     #[pyo3(signature = (px, pixel_sigma = 0.0))]
     fn image_to_world_std<'py>(
         &self,
