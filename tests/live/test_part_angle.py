@@ -355,3 +355,26 @@ def test_the_picture_shows_each_axis(
     # Nothing of the axis colour without the axes.
     plain = draw_objects(view.image, [dataclasses.replace(o, axis_px=None) for o in located])
     assert not np.all(np.abs(plain.astype(int) - AXIS_BGR) < 60, axis=2).any()
+
+
+def test_the_loop_in_a_mirrored_robot_frame_gives_the_mirrored_angle(
+    calibrated: tuple[Calibration, synth.RenderedScene, list[synth.SceneObject]], tmp_path: Path
+) -> None:
+    """A robot's base frame that is the board's mirror image turned by 30 degrees: a board
+    axis at phi is the robot's axis at 30 - phi."""
+    cal, view, _ = calibrated
+    c, s = math.cos(math.radians(30.0)), math.sin(math.radians(30.0))
+    mirror = np.array([[c, s], [s, -c]])  # a reflection: det -1
+    board = np.array([[0, 0], [260, 0], [260, 180], [0, 180], [130, 90], [60, 140]], float)
+    robot = board @ mirror.T + [400.0, -120.0]
+    registered = cal.register(robot, board_mm=board)
+    cv2.imwrite(str(tmp_path / "frame.png"), view.image)
+    with Tracker(registered, tmp_path, frame="robot") as t:
+        (result,) = list(t)
+    assert result.coords == "robot"
+    on_board = [
+        math.nan if o.angle_deg is None else o.angle_deg for o in locate_objects(view.image, cal)
+    ]
+    want = part_angle.wrap_deg(30.0 - np.array(on_board))
+    np.testing.assert_allclose(result.angles_deg, want, atol=1e-6)
+    assert np.isnan(result.angles_deg).sum() == 2
