@@ -223,7 +223,8 @@ def output_plan(args: argparse.Namespace) -> OutputPlan:
     network = parse_network_spec(spec)
     listening = network is not None and network[0] == "tcp-listen"
     fmt = line_format(args.format, args.template)
-    server: dict[str, Any] = {}
+    # A server's error lines (a request it cannot answer, a client too many) in the format.
+    server: dict[str, Any] = {"error_line": fmt.error} if listening else {}
     if args.trigger:
         if not listening:
             raise OutputError(
@@ -237,7 +238,7 @@ def output_plan(args: argparse.Namespace) -> OutputPlan:
             raise OutputError(
                 f"--trigger-timeout must be a positive number of seconds, not {timeout}"
             )
-        server.update(trigger_word=word, trigger_timeout=timeout, error_line=fmt.error)
+        server.update(trigger_word=word, trigger_timeout=timeout)
     else:
         for name, value in (
             ("--trigger-word", args.trigger_word),
