@@ -687,3 +687,40 @@ def test_the_command_says_where_it_listens_and_stops_cleanly_on_sigterm(
     (me,) = figures["output"]["per_client"]
     assert me["sent"] == len(lines) and me["dropped"] == 0
     client.close()
+
+
+def test_replies_keep_the_order_of_the_requests_and_overlong_lines_are_refused() -> None:
+    with contextlib.closing(ServerOutput("127.0.0.1", 0, trigger_word="GO")) as server:
+        robot = Client(server.port)
+        robot.send("GO\nPING\n")  # the error for PING waits behind the answer owed to GO
+        assert wait_for(lambda: server.stats.requests == 1 and server.stats.error_lines == 1)
+        assert server.answer(time.time(), lambda: "frame 1") == 1
+        assert robot.line() == "frame 1"
+        assert robot.line().startswith("ERROR,unknown request 'PING'")
+        # A frame read before a request does not answer it.
+        before = time.time()
+        robot.send("GO\n")
+        assert wait_for(lambda: server.stats.requests == 2)
+        assert server.answer(before, lambda: "too old") == 0
+        assert server.answer(time.time(), lambda: "frame 2") == 1
+        assert robot.line() == "frame 2"
+        robot.send("G" * 2000)
+        assert robot.line().startswith("ERROR,a request line longer than 1024 bytes")
+        robot.send("O\nGO\n")  # the rest of the long line is skipped; the next one counts
+        assert wait_for(lambda: server.stats.requests == 3)
+        assert server.answer(time.time(), lambda: "frame 3") == 1
+        assert robot.line() == "frame 3"
+        robot.close()
+
+
+def test_a_client_that_stalls_is_reset_and_its_drops_counted() -> None:
+    server = ServerOutput("127.0.0.1", 0, stall_timeout=0.3, max_pending_lines=4)
+    with contextlib.closing(server):
+        stuck = Client(server.port, receive_buffer=2048)
+        assert wait_for(lambda: server.stats.clients == 1)
+        line = "x" * 500
+        assert wait_for(lambda: not server.send(line) or server.stats.clients == 0)
+        (gone,) = server.stats.per_client
+        assert not gone.connected and "took no data for 0.3 s" in (gone.closed_by or "")
+        assert gone.dropped > 0 and server.stats.errors == 1
+        stuck.close()
