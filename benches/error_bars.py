@@ -144,11 +144,17 @@ SIZES = ((1280, 720), (640, 480))
 """The webcam scenes' resolutions."""
 
 
-def webcam_pairs(n: int, sizes: Sequence[tuple[int, int]] = SIZES) -> list[tuple[str, Any]]:
-    """``n`` random webcam scenes per size (distortion centre 0-40 px off, k2, tangential),
-    as (name, pair)."""
+def webcam_pairs(
+    n: int, sizes: Sequence[tuple[int, int]] = SIZES, centre_offset_px: float | None = None
+) -> list[tuple[str, Any]]:
+    """``n`` random webcam scenes per size (distortion centre 0-40 px off, or
+    ``centre_offset_px`` off in a random direction; k2, tangential), as (name, pair)."""
+    off = "" if centre_offset_px is None else f" {centre_offset_px:g} px off"
     return [
-        (f"webcam {w}x{h} #{seed}", random_webcam_scene(seed, size=(w, h)))
+        (
+            f"webcam {w}x{h}{off} #{seed}",
+            random_webcam_scene(seed, size=(w, h), centre_offset_px=centre_offset_px),
+        )
         for w, h in sizes
         for seed in range(n)
     ]

@@ -67,7 +67,7 @@ def test_raised_tops_are_located_within_a_tenth_of_a_millimetre(
         # Without the height the top is where its ray meets the table: millimetres off,
         # more so far from the camera's foot.
         assert np.hypot(*(truth[j] - np.array(ignored.world_mm))) > 0.4
-        assert found.world_std_mm is not None and 0 < found.world_std_mm < 0.01
+        assert found.world_std_mm is not None and 0.01 < found.world_std_mm < 0.05
     # Within a tenth of a millimetre on average; the worst part (a thin wall beside its top's
     # outline, near the camera's foot) is the object detector's 0.2 px.
     assert np.mean(gaps) < 0.07 and np.max(gaps) < 0.15, gaps

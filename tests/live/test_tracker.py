@@ -117,7 +117,9 @@ def test_objects_are_tracked_in_millimetres_through_a_video(
         0,
         0,
     )
-    assert all(o.std_mm < 0.01 for r in results for o in r.objects)
+    # 1-sigma of a located part: the outline's centroid error (0.03 px, about 0.02 mm here)
+    # with the calibration's own.
+    assert all(0.01 < o.std_mm < 0.05 for r in results for o in r.objects)
     assert set(s.stage_s) == {"read", "detect", "map", "track"}
     # Each frame's JSON line parses back to what it says.
     line = json.loads(results[3].to_json())
@@ -384,7 +386,7 @@ def _check_lines(lines: list[dict[str, Any]], truth: np.ndarray, tol_mm: float) 
             gap = np.hypot(*(truth[k] - np.array(o["mm"])).T)
             j = int(gap.argmin())
             assert gap[j] < tol_mm and owner.setdefault(o["id"], j) == j
-            assert 0 < o["std_mm"] < 0.01
+            assert 0.01 < o["std_mm"] < 0.05
 
 
 def test_run_writes_one_line_per_frame_to_a_file_and_stdout(

@@ -19,7 +19,8 @@ Beyond the paper:
   first. With intrinsics the camera's pose is known, so ``image_to_world(px, height=h)``
   maps the top of an object h mm tall to where it really is.
 * **Uncertainty**: ``image_to_world(px, return_std=True)`` gives each point's 1-sigma error
-  in mm from the fit's covariance.
+  in mm from the fit's covariance, the model's bias and the pixel's own noise (a located
+  part's, by default): ``error_budget`` (calib.error_budget) says what each term is.
 * **Printer scale**: ``rescaled`` corrects the world frame by an independent measurement of
   the board's pitch (or its printed check bar), which no homography can see.
 * **The robot's frame**: ``register`` (or ``with_robot_frame``) attaches a registration of the
@@ -50,7 +51,7 @@ from planarcal.calib import calibration_file, frame_size
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration_file import FILE_FORMAT, FILE_VERSION, READS_VERSIONS
 from planarcal.calib.detect import detect_board
-from planarcal.calib.error_budget import ErrorBudget, with_budget
+from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX, ErrorBudget, with_budget
 from planarcal.calib.leave_one_out import homography_leave_one_out
 from planarcal.calib.lens_choice import (
     LENS_MARGIN,
@@ -515,7 +516,7 @@ class Calibration:
         *,
         height: float | ArrayLike = 0.0,
         return_std: bool = False,
-        pixel_sigma: float = 0.0,
+        pixel_sigma: float = OUTLINE_CENTROID_SIGMA_PX,
         image_size: tuple[int, int] | None = None,
         frame: Coords = "board",
     ) -> Any:
@@ -534,7 +535,9 @@ class Calibration:
 
         ``return_std=True`` returns ``(mm, std_mm)``: each point's 1-sigma position error
         (sqrt of the covariance's trace: the RMS distance from the truth) from the fit's
-        uncertainty, plus the pixel's own noise of ``pixel_sigma`` px per coordinate. In the
+        uncertainty and the model's bias (``error_budget``), plus the pixel's own noise of
+        ``pixel_sigma`` px per coordinate (default: a part centroid's from the outline
+        detector, ``OUTLINE_CENTROID_SIGMA_PX``; 0 for an exact pixel). In the
         robot frame the registration's own error at the point is added in quadrature
         (``RobotFrame.robot_std_mm``).
         """
@@ -599,7 +602,7 @@ class Calibration:
 
         def board(px: F64) -> tuple[F64, F64]:
             if direct:
-                return plane.image_to_world_std(px, 0.0)
+                return plane.image_to_world_std(px, OUTLINE_CENTROID_SIGMA_PX)
             mm, std = self.image_to_world(px, height=height, return_std=True)
             return mm, std
 
@@ -614,7 +617,9 @@ class Calibration:
 
         return robot
 
-    def world_covariance(self, points_px: ArrayLike, *, pixel_sigma: float = 0.0) -> F64:
+    def world_covariance(
+        self, points_px: ArrayLike, *, pixel_sigma: float = OUTLINE_CENTROID_SIGMA_PX
+    ) -> F64:
         """The 2 x 2 covariance (mm^2) of each point's position on the plane, (N, 2, 2)."""
         arr = _points(points_px, "points_px")
         ideal = self.intrinsics.undistort_points(arr) if self.intrinsics is not None else arr

@@ -42,6 +42,7 @@ def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
         "lens_note": cal.lens_note,
         "lens_candidates": [c.to_dict() for c in cal.lens_candidates],
         "lens_max_displacement_px": max_displacement_px(cal),
+        "error_budget": cal.error_budget.to_dict(),
     }
     if cal.intrinsics is not None:
         out["intrinsics"] = cal.intrinsics.to_dict()
@@ -252,6 +253,24 @@ def residual_note(cal: Calibration) -> str:
     return f"{note}; {_model_phrase(cal)}: {cal.stats.rms:.3f} px RMS"
 
 
+def _budget_text(cal: Calibration) -> list[str]:
+    """What std_mm covers, and how big it is at the board's centre."""
+    b = cal.error_budget
+    try:
+        centre = cal.world_to_image(0.5 * (cal.world_points.min(0) + cal.world_points.max(0)))
+        _, exact = cal.image_to_world(centre, return_std=True, pixel_sigma=0.0)
+        _, part = cal.image_to_world(centre, return_std=True)
+    except ValueError:
+        return []
+    return [
+        f"Error bars (std_mm): {exact:.4f} mm at the board's centre for an exact pixel, "
+        f"{part:.4f} mm for a located part",
+        f"  (the fit's covariance, the model's bias of {b.model_sigma_px:.4f} px per "
+        f"coordinate: the dots' lens bias {b.dot_bias_px:.4f} px, the lens model's "
+        f"{b.lens_bias_px:.4f} px; and a part's centroid error, {b.detector_px:g} px)",
+    ]
+
+
 def summary_text(cal: Calibration, detection: Any = None) -> str:
     """A readable summary of the calibration."""
     s = cal.summary()
@@ -287,9 +306,11 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
             f"Uncertainty: the fit's covariance predicts a leave-one-out RMS of "
             f"{s.predicted_loo_rms_mm:.4f} mm, measured {s.loo_rms_mm:.4f} mm "
             f"(ratio {ratio:.2f})",
-            "  (near 1: the 1-sigma uncertainties reported are to be trusted; well above 1:",
-            "  the model misses something the residuals do not show as noise)",
+            "  (near 1: the residuals are the noise the fit assumes; well above 1: the model",
+            "  misses something they do not show as noise; neither sees a bias all the dots",
+            "  share, which the error bars below add)",
         ]
+    lines += _budget_text(cal)
     if tuple(cal.world_scale) != (1.0, 1.0):
         sx, sy = cal.world_scale
         lines.append(

@@ -1,6 +1,7 @@
-"""The uncertainty figure: the 1-sigma position uncertainty (mm, from the fit's covariance)
-as a heat map over the working area on the plane, with where it doubles relative to the
-board's centre."""
+"""The uncertainty figure: the 1-sigma position uncertainty of an exact pixel (mm, from the
+fit's covariance and the model's bias, calib.error_budget) as a heat map over the working
+area on the plane, with where it doubles relative to the board's centre; the title says
+what a located part's own centroid error adds."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 
 from planarcal.arguments import F64
 from planarcal.calib.calibration import Calibration
+from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX
 from planarcal.report.figure import new_figure, outline_mm, png
 from planarcal.report.mapping import MAP_ERRORS, mappable, masked
 
@@ -32,7 +34,8 @@ _DEGRADATION = (1.5, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0)
 
 
 def uncertainty_figure(cal: Calibration) -> bytes:
-    """The 1-sigma position uncertainty (mm, from the fit's covariance) as a heat map over
+    """The 1-sigma position uncertainty of an exact pixel (mm, from the fit's covariance and
+    the model's bias) as a heat map over
     the working area (the image region around the board, extended by half the board's size
     each way and clipped to the image) on the plane, in mm, with the board's dots, contour
     lines at multiples of the uncertainty at the board's centre and the line where it
@@ -46,7 +49,10 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     world = cal.world_points
     centre_mm = 0.5 * (world.min(axis=0) + world.max(axis=0))
     try:
-        _, centre_std = cal.image_to_world(cal.world_to_image(centre_mm), return_std=True)
+        _, centre_std = cal.image_to_world(
+            cal.world_to_image(centre_mm), return_std=True, pixel_sigma=0.0
+        )
+        _, part_std = cal.image_to_world(cal.world_to_image(centre_mm), return_std=True)
     except MAP_ERRORS as e:
         ax.text(
             0.5,
@@ -65,7 +71,7 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     px = np.column_stack([gx.ravel(), gy.ravel()])
 
     def mapped(p: F64) -> F64:
-        mm, std = cal.image_to_world(p, return_std=True)
+        mm, std = cal.image_to_world(p, return_std=True, pixel_sigma=0.0)
         return np.column_stack([mm, std])
 
     out = np.full((len(px), 3), np.nan)
@@ -155,8 +161,10 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     ax.set_ylabel("Y (mm)")
     clipped = ", clipped to the image" if cal.image_size is not None else ""
     ax.set_title(
-        "1-sigma position uncertainty on the plane, from the fit's covariance (a measured "
-        "pixel's own noise adds to it)\n"
+        "1-sigma position uncertainty on the plane of an exact pixel, from the fit's covariance "
+        "and the model's bias\n"
+        f"(a located part's centroid error, {OUTLINE_CENTROID_SIGMA_PX:g} px, makes it "
+        f"{part_std:.3g} mm at the board's centre)\n"
         f"Working area: the board's image region extended by half its size each way{clipped}."
         f"\n{c:.3g} mm at the board's centre; white contours at multiples of it; {where}",
         fontsize=10,
