@@ -3,7 +3,7 @@ elongated parts), and what the roundness rule does with round ones.
 
 Scenes: the paper's webcam (1280 x 720, f = 1070 px, barrel distortion k1 = -0.12, k2 = 0.03,
 with a decentring term p1 = 5e-4), its blur (0.8 px) and sensor noise (2.5 grey levels), a
-view from 500 mm tilted by 0, 25 and 45 degrees about a random in-plane axis. On the table:
+view from 500 mm tilted by 0, 25, 35 and 45 degrees about a random in-plane axis. On the table:
 rectangles of 1.5 : 1, 2 : 1 and 3 : 1 (8-12 mm wide), M6 bolts, squares, discs, nuts and
 washers, at random angles. Each part's angle is measured
 
@@ -168,7 +168,7 @@ def main() -> None:
     parser.add_argument("--markdown", action="store_true")
     parser.add_argument("--edge-noise", action="store_true")
     args = parser.parse_args()
-    tilts = (0.0, 25.0, 45.0)
+    tilts = (0.0, 25.0, 35.0, 45.0)
     r = run(args.scenes, tilts)
 
     def rms(v: list[float]) -> str:
