@@ -31,7 +31,7 @@ from planarcal.report import summary_json, summary_text, write_detection_failure
 from planarcal.report.drawing import draw_objects, png_bytes
 from planarcal.report.printable import CHECK_BAR_MM, PrintLayout, pitch_meaning, write_board
 from planarcal.robot import register_command
-from planarcal.robot.output_frame import FRAMES, checked_frame, objects_in_frame
+from planarcal.robot.output_frame import FRAMES, checked_frame
 from planarcal.synth import demo
 
 # Errors the commands report in one line; anything else is a bug and keeps its traceback.
@@ -243,8 +243,8 @@ def _cmd_locate(args: argparse.Namespace) -> int:
     cal = Calibration.load(args.calibration)
     frame = checked_frame(args.frame, cal.robot_frame)
     image = load_image(args.image)
-    objects = objects_in_frame(
-        locate_objects(image, cal, height_mm=args.height, min_area_px=args.min_area), cal, frame
+    objects = locate_objects(
+        image, cal, height_mm=args.height, frame=frame, min_area_px=args.min_area
     )
     if args.annotate is not None:
         atomic_write(args.annotate, png_bytes(draw_objects(image, objects)))

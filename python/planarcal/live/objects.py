@@ -27,6 +27,7 @@ from planarcal.live.part_angle import PartAxes, jacobians, part_axes
 
 if TYPE_CHECKING:
     from planarcal.calib.calibration import Calibration
+    from planarcal.robot.output_frame import Coords
 
 F64 = NDArray[np.float64]
 
@@ -225,12 +226,19 @@ def _mask(mask: Any, shape: tuple[int, int]) -> NDArray[np.bool_] | None:
 
 
 def locate_objects(
-    image: Any, calibration: Calibration, *, height_mm: float = 0.0, **options: Any
+    image: Any,
+    calibration: Calibration,
+    *,
+    height_mm: float = 0.0,
+    frame: Coords = "board",
+    **options: Any,
 ) -> list[DetectedObject]:
     """detect_objects, with each centroid mapped to the plane in mm through `calibration`
     (the paper's Table 5), with its 1-sigma uncertainty (``world_std_mm``), and each part's
-    angle on the board (``angle_deg``: its axis's second moments turned through the
-    calibration's local Jacobian, see planarcal.live.part_angle). Objects whose
+    angle (``angle_deg``: its axis's second moments turned through the local Jacobian of the
+    whole mapping, see planarcal.live.part_angle), in ``frame``: "board" (the board's mm)
+    or "robot" (the robot's base frame, through the calibration's registration; an
+    ArgumentError without one). Objects whose
     outlines are ``height_mm`` above the plane (the top face of parts of that height) are
     located where they really are, which needs a calibration with camera intrinsics.
     Options are those of detect_objects.
@@ -244,11 +252,12 @@ def locate_objects(
         return []
     px = found.centroids
 
-    def to_board(points: F64) -> F64:
-        return np.asarray(calibration.image_to_world(points, height=height_mm), dtype=np.float64)
+    def to_frame(points: F64) -> F64:
+        mm = calibration.image_to_world(points, height=height_mm, frame=frame)
+        return np.asarray(mm, dtype=np.float64)
 
-    mm, std = calibration.image_to_world(px, height=height_mm, return_std=True)
-    axes = part_axes(found.moments, found.areas, jacobians(to_board, px))
+    mm, std = calibration.image_to_world(px, height=height_mm, return_std=True, frame=frame)
+    axes = part_axes(found.moments, found.areas, jacobians(to_frame, px))
     return [
         dataclasses.replace(o, world_mm=(float(x), float(y)), world_std_mm=float(s))
         for o, (x, y), s in zip(_objects(found, axes), mm, std, strict=True)
