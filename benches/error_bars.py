@@ -10,6 +10,10 @@ are honest, above 1 when they flatter, below when they are too cautious.
   camera) and mapped back through the calibration, as exact pixels (``pixel_sigma=0``).
 * Parts: the parts of a rendered scene located by ``locate_objects`` (their centroids from
   the sub-pixel outlines), each matched to the nearest true centroid.
+* Parts in the robot frame: the same parts located with ``frame="robot"`` through a
+  registration fitted to six touched dots (a random mirrored, turned and offset robot,
+  touches with ROBOT_TOUCH_NOISE_MM of noise per axis), against the truth mapped into the
+  robot's frame.
 """
 
 from __future__ import annotations
@@ -34,6 +38,40 @@ Mapping = Callable[[F64], tuple[F64, F64]]
 
 # A located part farther than this from every true centroid is not one of them (mm).
 MATCH_MM = 3.0
+
+# A robot's repeatability (mm, 1-sigma per axis), and the dots it touches to register:
+# the corners and two inside of a cols x rows board, as (col, row).
+ROBOT_TOUCH_NOISE_MM = 0.05
+
+
+def _touched_dots(cols: int, rows: int) -> list[int]:
+    picks = [(0, 0), (cols - 1, 0), (cols - 1, rows - 1), (0, rows - 1)]
+    picks += [(cols // 3, rows // 3), (2 * cols // 3, 2 * rows // 3)]
+    return [r * cols + c for c, r in picks]
+
+
+def random_robot(rng: np.random.Generator) -> F64:
+    """A board-to-robot matrix (3 x 3): the board mirrored (a robot's base frame seen from
+    above is the mirror image of a board's), turned at random and offset up to 600 mm."""
+    a = rng.uniform(-np.pi, np.pi)
+    m = np.eye(3)
+    m[:2, :2] = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]) @ np.diag([1.0, -1.0])
+    m[:2, 2] = rng.uniform(-600.0, 600.0, 2)
+    return m
+
+
+def registered(cal: Calibration, robot: F64, rng: np.random.Generator) -> Calibration:
+    """``cal`` registered to ``robot`` (board mm -> robot mm) from six touched dots, each
+    reading ROBOT_TOUCH_NOISE_MM off per axis."""
+    board = cal.board
+    assert board is not None
+    dots = _touched_dots(board.cols, board.rows)
+    truth = _apply(robot, board.world_points()[dots])
+    return cal.register(truth + rng.normal(0.0, ROBOT_TOUCH_NOISE_MM, truth.shape), dots=dots)
+
+
+def _apply(m: F64, points: F64) -> F64:
+    return np.asarray(points @ m[:2, :2].T + m[:2, 2], dtype=np.float64)
 
 
 def rms(values: Any) -> float:
@@ -109,7 +147,7 @@ def part_errors(
 
 @dataclasses.dataclass
 class SceneErrors:
-    """One scene's calibration and both categories' errors."""
+    """One scene's calibration and each category's errors."""
 
     name: str
     size: tuple[int, int]
@@ -117,18 +155,22 @@ class SceneErrors:
     lens_model: str
     board: Errors
     parts: Errors
+    robot_parts: Errors
     calibration: Calibration
 
 
 def measure_pair(
     name: str, pair: synth.PaperScene, rng: np.random.Generator, board_points: int = 2000
 ) -> SceneErrors:
-    """Calibrates on the pair's board image (lens "auto") and measures both categories."""
+    """Calibrates on the pair's board image (lens "auto"), registers it to a random robot,
+    and measures each category."""
     view = pair.calibration
     assert view.board is not None
     cal = Calibration.from_detection(detect_board(view.image, view.board))
     cam = view.camera
     offset = float(np.hypot(cam.cx - (cam.width - 1) / 2.0, cam.cy - (cam.height - 1) / 2.0))
+    robot = random_robot(rng)
+    in_robot = registered(cal, robot, rng)
     return SceneErrors(
         name,
         (cam.width, cam.height),
@@ -136,6 +178,12 @@ def measure_pair(
         cal.lens_model,
         board_point_errors(view, exact_pixels(cal), rng, board_points),
         part_errors(pair.objects, cal),
+        part_errors(
+            pair.objects,
+            in_robot,
+            locate=lambda image, c: locate_objects(image, c, frame="robot"),
+            to_truth_frame=lambda mm: _apply(robot, mm),
+        ),
         cal,
     )
 
