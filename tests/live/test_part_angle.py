@@ -149,7 +149,9 @@ def test_elongated_parts_are_within_half_a_degree_under_steep_perspective(
     # The tensor must be turned, not the pixel axis: that is degrees off here.
     assert max(pixel_errors) > 2.0, pixel_errors
     # The loop's path gives the same angles.
-    same = part_angle.part_angles_deg(found.moments, found.areas, found.centroids, to_plane)
+    same = part_angle.part_angles_deg(
+        found.moments, found.areas, part_angle.jacobians(to_plane, found.centroids)
+    )
     np.testing.assert_allclose(same, axes.angles_deg, rtol=0, atol=1e-9)
 
 
@@ -159,7 +161,9 @@ def test_round_parts_have_no_axis_and_a_one_and_a_half_to_one_part_has_one() -> 
     found = _detect(view.image)
     assert len(found.areas) == len(things)
     angles = part_angle.part_angles_deg(
-        found.moments, found.areas, found.centroids, lambda p: CAMERA.image_to_plane(p, pose)
+        found.moments,
+        found.areas,
+        part_angle.jacobians(lambda p: CAMERA.image_to_plane(p, pose), found.centroids),
     )
     for i, j in enumerate(matched(view, found.centroids)):
         o = things[j]
@@ -182,16 +186,17 @@ def test_a_mirrored_frame_negates_the_angle(
     def mirrored(px: F64) -> F64:
         return np.asarray(board(px) * [1.0, -1.0] + [400.0, 250.0], dtype=np.float64)
 
-    a = part_angle.part_angles_deg(found.moments, found.areas, found.centroids, board)
-    b = part_angle.part_angles_deg(found.moments, found.areas, found.centroids, mirrored)
+    def angles(mapping: part_angle.Mapping) -> F64:
+        jac = part_angle.jacobians(mapping, found.centroids)
+        return part_angle.part_angles_deg(found.moments, found.areas, jac)
+
+    a, b = angles(board), angles(mirrored)
     assert np.isfinite(a).all()
     np.testing.assert_allclose(b, part_angle.wrap_deg(-a), atol=1e-9)
     # A rotation of the frame by 30 degrees subtracts 30 from every angle.
     turn = np.radians(30.0)
     rot = np.array([[math.cos(turn), math.sin(turn)], [-math.sin(turn), math.cos(turn)]])
-    c = part_angle.part_angles_deg(
-        found.moments, found.areas, found.centroids, lambda p: board(p) @ rot.T
-    )
+    c = angles(lambda p: board(p) @ rot.T)
     np.testing.assert_allclose(c, part_angle.wrap_deg(a - 30.0), atol=1e-9)
 
 
@@ -261,9 +266,11 @@ def test_bad_input_is_refused_by_name() -> None:
     def nowhere(p: F64) -> F64:
         return np.full_like(p, np.nan)
 
-    angles = part_angle.part_angles_deg([rectangle_moments(40, 10, 5)], [400.0], [[5, 5]], nowhere)
+    jac = part_angle.jacobians(nowhere, [[5.0, 5.0]])
+    angles = part_angle.part_angles_deg([rectangle_moments(40, 10, 5)], [400.0], jac)
     assert np.isnan(angles).all()
-    assert part_angle.part_angles_deg(np.zeros((0, 3)), [], np.zeros((0, 2)), nowhere).shape == (0,)
+    none = part_angle.jacobians(nowhere, np.zeros((0, 2)))
+    assert part_angle.part_angles_deg(np.zeros((0, 3)), [], none).shape == (0,)
 
 
 # ------------------------------------------------------------------------------------------

@@ -344,8 +344,10 @@ def test_parts_located_in_the_robot_frame_are_the_board_ones_mapped(
     for b, r in zip(on_board, in_robot, strict=True):
         assert b.world_mm is not None and r.world_mm is not None
         np.testing.assert_allclose(r.world_mm, frame.to_robot(np.array(b.world_mm)), atol=1e-9)
+        # (the 1-sigma is taken at the image centroid's image, a fraction of a mm away)
         assert r.world_std_mm == pytest.approx(
-            float(frame.robot_std_mm(np.array([b.world_mm]), np.array([b.world_std_mm]))[0])
+            float(frame.robot_std_mm(np.array([b.world_mm]), np.array([b.world_std_mm]))[0]),
+            rel=1e-3,
         )
         assert (b.angle_deg is None) == (r.angle_deg is None)
         if b.angle_deg is not None and r.angle_deg is not None:

@@ -339,10 +339,16 @@ def test_the_tracker_maps_to_the_frame_asked_for(
     assert results["board"].coords == "board" == results["board_asked"].coords
     assert results["robot"].coords == "robot"
     np.testing.assert_array_equal(results["board"].world_mm, results["board_asked"].world_mm)
-    board_mm, board_std = cal.image_to_world(results["robot"].centroids_px, return_std=True)
     assert registered.robot_frame is not None
-    np.testing.assert_allclose(results["robot"].world_mm, registered.robot_frame.to_robot(board_mm))
+    # The robot frame's positions are the board frame's mapped (a part's centroid on the
+    # plane is carried by an affine map as it is).
+    board_mm = results["board"].world_mm
     np.testing.assert_allclose(
-        results["robot"].std_mm,
-        np.hypot(board_std, registered.robot_frame.std_mm(board_mm)),
+        results["robot"].world_mm, registered.robot_frame.to_robot(board_mm), rtol=0, atol=1e-9
+    )
+    # The 1-sigma: the board's and the registration's own, at the image centroid's image.
+    at, board_std = cal.image_to_world(results["robot"].centroids_px, return_std=True)
+    np.testing.assert_allclose(results["board"].std_mm, board_std)
+    np.testing.assert_allclose(
+        results["robot"].std_mm, np.hypot(board_std, registered.robot_frame.std_mm(at))
     )

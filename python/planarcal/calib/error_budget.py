@@ -23,8 +23,8 @@ that says, and parts 10-70x, for three reasons the covariance cannot see:
   dots (one pitch apart), per coordinate, taken as zero where it is negative.
 * **The part detector's centroid error** (``OUTLINE_CENTROID_SIGMA_PX``): a located part's
   centroid comes from its sub-pixel outline, which blur, noise and the edges' sampling move;
-  measured against the truth on rendered parts (nuts, washers, discs, bolts) it is about
-  0.03 px per coordinate. It is a property of the pixel, not of the calibration: it enters as
+  measured against the truth on rendered parts (nuts, washers, discs, bolts), once carried
+  to the plane to second order, it is about 0.025 px per coordinate. It is a property of the pixel, not of the calibration: it enters as
   ``pixel_sigma``, the pixel's own noise.
 
 The first two are the model's bias, ``model_sigma_px`` = hypot(dot, lens): the core's
@@ -53,12 +53,12 @@ from planarcal.homography import transform_points
 
 F64 = NDArray[np.float64]
 
-OUTLINE_CENTROID_SIGMA_PX = 0.03
+OUTLINE_CENTROID_SIGMA_PX = 0.025
 """The part detector's centroid error, px per coordinate (1-sigma): the RMS error of the
-sub-pixel outline's centroid against the truth on rendered parts with the paper scene's blur
-(0.8 px), noise (2.5 grey levels) and uneven lighting: 0.016-0.027 px for round parts and
-nuts, 0.05 px for bolts (along their axis), 0.030-0.033 px over a mix (benches/
-bench_accuracy.py, its error-bar section)."""
+sub-pixel outline's centroid, carried to the plane to second order (planarcal.live.local_map),
+against the truth on rendered parts with blur (0.8 px), noise (2.5 grey levels) and uneven
+lighting: 0.013-0.021 px for discs, nuts and washers, 0.028-0.037 px for bolts, 0.021-0.025
+px over a mix (webcam, paper and demo scenes of bench_accuracy.py's error-bar section)."""
 
 # Neighbouring dots: those within this factor of the nearest spacing.
 _NEIGHBOUR_SLACK = 1.05

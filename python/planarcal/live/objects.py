@@ -23,7 +23,8 @@ from planarcal import _core
 from planarcal.errors import ImageError
 from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
-from planarcal.live.part_angle import PartAxes, jacobians, part_axes
+from planarcal.live.local_map import area_centroids, local_maps
+from planarcal.live.part_angle import PartAxes, part_axes
 
 if TYPE_CHECKING:
     from planarcal.calib.calibration import Calibration
@@ -233,15 +234,16 @@ def locate_objects(
     frame: Coords = "board",
     **options: Any,
 ) -> list[DetectedObject]:
-    """detect_objects, with each centroid mapped to the plane in mm through `calibration`
-    (the paper's Table 5), with its 1-sigma uncertainty (``world_std_mm``), and each part's
-    angle (``angle_deg``: its axis's second moments turned through the local Jacobian of the
-    whole mapping, see planarcal.live.part_angle), in ``frame``: "board" (the board's mm)
-    or "robot" (the robot's base frame, through the calibration's registration; an
-    ArgumentError without one). Objects whose
-    outlines are ``height_mm`` above the plane (the top face of parts of that height) are
-    located where they really are, which needs a calibration with camera intrinsics.
-    Options are those of detect_objects.
+    """detect_objects, with each part located on the plane in mm through `calibration` (the
+    paper's Table 5): its centroid on the plane (the image centroid's image corrected to
+    second order for the mapping's stretch across the part, see planarcal.live.local_map),
+    its 1-sigma uncertainty (``world_std_mm``), and its angle (``angle_deg``: its axis's
+    second moments turned through the local Jacobian of the whole mapping, see
+    planarcal.live.part_angle), in ``frame``: "board" (the board's mm) or "robot" (the
+    robot's base frame, through the calibration's registration; an ArgumentError without
+    one). Objects whose outlines are ``height_mm`` above the plane (the top face of parts of
+    that height) are located where they really are, which needs a calibration with camera
+    intrinsics. Options are those of detect_objects.
 
     FrameSizeError, before any detection, if the image is not of the size the calibration
     was made on (see ``Calibration.check_image_size``)."""
@@ -252,12 +254,18 @@ def locate_objects(
         return []
     px = found.centroids
 
-    def to_frame(points: F64) -> F64:
-        mm = calibration.image_to_world(points, height=height_mm, frame=frame)
-        return np.asarray(mm, dtype=np.float64)
+    def to_frame(points: F64) -> tuple[F64, F64]:
+        return calibration.image_to_world(  # type: ignore[no-any-return]
+            points, height=height_mm, return_std=True, frame=frame
+        )
 
-    mm, std = calibration.image_to_world(px, height=height_mm, return_std=True, frame=frame)
-    axes = part_axes(found.moments, found.areas, jacobians(to_frame, px))
+    # Each part's centroid on the plane (not the image of its image centroid: see
+    # planarcal.live.local_map) and its axis, from one mapping of the points round it.
+    local = local_maps(to_frame, px)
+    mm = area_centroids(local, found.moments)
+    std = local.std
+    assert std is not None
+    axes = part_axes(found.moments, found.areas, local.jacobian)
     return [
         dataclasses.replace(o, world_mm=(float(x), float(y)), world_std_mm=float(s))
         for o, (x, y), s in zip(_objects(found, axes), mm, std, strict=True)

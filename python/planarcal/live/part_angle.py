@@ -12,13 +12,14 @@ C_out = J C_px J^T (first order in the part's size over the distance on which th
 derivative changes: on silhouettes of 8 x 16 mm parts projected exactly from a 45 degree tilt,
 the axis so turned is within 0.004 degree of the true one), and the axis is taken there.
 
-J comes from central differences of the very mapping the positions go through (one call on
-the 4 n offset points of a frame's n parts), rather than analytically: the positions may pass
-through a lens model, a lift to the parts' height and a registration to a robot's frame, and
-differencing the composition gives the angle in exactly the frame of the positions, whatever
-is composed, with no second derivation to keep in step. Its error is the step's (``STEP_PX``:
-a pixel) squared times the mapping's third derivative: 1e-7 of the Jacobian against a step of
-0.01 px, through the paper scene's calibration with its lens model.
+J comes from central differences of the very mapping the positions go through
+(planarcal.live.local_map, the same samples that put each part's centroid on the plane),
+rather than analytically: the positions may pass through a lens model, a lift to the parts'
+height and a registration to a robot's frame, and differencing the composition gives the angle
+in exactly the frame of the positions, whatever is composed, with no second derivation to keep
+in step. Its error is the step's (a pixel) squared times the mapping's third derivative: 1e-7
+of the Jacobian against a step of 0.01 px, through the paper scene's calibration with its lens
+model.
 
 Convention: degrees in [-90, 90), measured in the output frame from its +x axis towards its +y
 axis, i.e. atan2 of the axis's y over its x in that frame's coordinates. An axis has no
@@ -58,6 +59,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from planarcal.errors import ArgumentError
+from planarcal.live.local_map import STEP_PX, local_maps
 
 F64 = NDArray[np.float64]
 
@@ -65,7 +67,6 @@ __all__ = [
     "EDGE_SIGMA_PX",
     "MAX_ANGLE_SIGMA_DEG",
     "MIN_ANISOTROPY",
-    "STEP_PX",
     "PartAxes",
     "axis_is_defined",
     "jacobians",
@@ -73,10 +74,6 @@ __all__ = [
     "part_axes",
     "wrap_deg",
 ]
-
-STEP_PX = 1.0
-"""The central differences' step, px: far below the scale on which the mapping bends, far
-above the digits the subtraction loses (1e-16 of a position of a few hundred mm)."""
 
 MIN_ANISOTROPY = 0.08
 """Below this (l1 - l2) / (l1 + l2), a part is too round for an axis (an ellipse of axes
@@ -108,39 +105,11 @@ Mapping = Callable[[F64], ArrayLike]
 """Pixels (N, 2) -> positions in the output frame (N, 2)."""
 
 
-# The four central-difference offsets, in units of the step: +x, -x, +y, -y.
-_OFFSETS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-
-
 def jacobians(mapping: Mapping, centroids_px: ArrayLike, step_px: float = STEP_PX) -> F64:
     """The mapping's Jacobian d(out)/d(px) at each centroid, (n, 2, 2), by central differences
-    (one call of `mapping` on the 4 n offset points). NaN where an offset point has no image
-    (it maps to NaN)."""
-    c = _points(centroids_px, "centroids_px")
-    n = len(c)
-    out = _offset_images(mapping, c, step_px).reshape(4, n, 2)
-    jac = np.empty((n, 2, 2))
-    jac[:, :, 0] = (out[0] - out[1]) / (2.0 * step_px)
-    jac[:, :, 1] = (out[2] - out[3]) / (2.0 * step_px)
-    return jac
-
-
-def _offset_images(mapping: Mapping, c: F64, step_px: float) -> F64:
-    """The images (4 n, 2) of the points step_px either side of each centroid: +x, -x, +y, -y,
-    each a block of n."""
-    if not (math.isfinite(step_px) and step_px > 0):
-        raise ArgumentError(f"step_px must be a finite number > 0, got {step_px!r}")
-    n = len(c)
-    if n == 0:
-        return np.zeros((0, 2))
-    stacked = (c[None, :, :] + step_px * _OFFSETS[:, None, :]).reshape(-1, 2)
-    out = np.asarray(mapping(stacked), dtype=np.float64)
-    if out.shape != (4 * n, 2):
-        raise ArgumentError(
-            f"the mapping must return one 2-D position per pixel, (N, 2): got {out.shape} "
-            f"for {4 * n} points"
-        )
-    return out
+    (one call of `mapping`, see planarcal.live.local_map). NaN where a sample point has no
+    image (it maps to NaN)."""
+    return local_maps(lambda p: (mapping(p), None), centroids_px, step_px).jacobian
 
 
 def part_axes(
@@ -171,23 +140,12 @@ def part_axes(
     return PartAxes(angles, axes, anisotropy, sigma)
 
 
-def part_angles_deg(
-    moments_px: ArrayLike, areas_px: ArrayLike, centroids_px: ArrayLike, mapping: Mapping
-) -> F64:
-    """Each part's angle in the frame `mapping` takes pixels to, degrees in [-90, 90), NaN where
-    it has no axis: part_axes' angles through the Jacobian of `mapping` at each centroid (one
-    call of `mapping`), for the production loop (no image directions)."""
-    c = _points(centroids_px, "centroids_px")
-    n = len(c)
-    m, area, _ = _checked(moments_px, areas_px, None)
-    if len(m) != n:
-        raise ArgumentError(f"moments_px must hold one row per centroid ({n}), got {len(m)}")
-    if n == 0:
-        return np.zeros(0)
-    out = _offset_images(mapping, c, STEP_PX).reshape(4, n, 2)
-    # J's columns times 2 h (the scale drops out of the axis and of the roundness rule).
-    dx, dy = out[0] - out[1], out[2] - out[3]
-    return _angles(m, area, dx[:, 0], dy[:, 0], dx[:, 1], dy[:, 1])[0]
+def part_angles_deg(moments_px: ArrayLike, areas_px: ArrayLike, jacobian: ArrayLike) -> F64:
+    """Each part's angle in the frame the Jacobians (n, 2, 2, from `jacobians` or
+    local_map.local_maps) take pixels to, degrees in [-90, 90), NaN where it has no axis:
+    part_axes' angles without the image directions, for the production loop."""
+    m, area, jac = _checked(moments_px, areas_px, jacobian)
+    return _angles(m, area, jac[:, 0, 0], jac[:, 0, 1], jac[:, 1, 0], jac[:, 1, 1])[0]
 
 
 def axis_is_defined(anisotropy: ArrayLike, sigma_deg: ArrayLike) -> NDArray[np.bool_]:

@@ -63,6 +63,7 @@ from planarcal import _core
 from planarcal.calib.calibration import Calibration
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, StateError
 from planarcal.live.capture import Camera, Frame
+from planarcal.live.local_map import area_centroids, local_maps
 from planarcal.live.objects import _detect, detect_objects
 from planarcal.live.part_angle import part_angles_deg
 from planarcal.robot.output_frame import Coords, checked_frame
@@ -360,17 +361,16 @@ class Tracker:
         t1 = time.perf_counter()
         stage["detect"] += t1 - t0
         px = found.centroids
-        if len(px):
-            # One call maps the whole frame (and its uncertainty) in the core.
-            mm, std = self._map(px)
-        else:
-            mm, std = np.zeros((0, 2)), np.zeros(0)
+        # One call maps the whole frame (and its uncertainty) in the core, at each centroid
+        # and the points round it that give the mapping's derivatives there: each part's
+        # centroid on the plane, and its axis turned into the output frame.
+        local = local_maps(self._map, px)
+        mm = area_centroids(local, found.moments)
+        std = local.std if local.std is not None else np.zeros(len(px))
+        angles = part_angles_deg(found.moments, found.areas, local.jacobian)
         t2 = time.perf_counter()
         stage["map"] += t2 - t1
         ids = self._tracks.update(mm)
-        # Each part's axis in the output frame: its moments turned through the Jacobian of
-        # the positions' own mapping at its centroid (one more call, on 4 points per part).
-        angles = part_angles_deg(found.moments, found.areas, px, lambda p: self._map(p)[0])
         result = FrameResult(index, stamp, ids, px, mm, std, found.areas, angles, self.frame)
         stage["track"] += time.perf_counter() - t2
         return result
