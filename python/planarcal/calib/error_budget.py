@@ -24,8 +24,8 @@ that says, and parts 10-70x, for three reasons the covariance cannot see:
 * **The part detector's centroid error** (``OUTLINE_CENTROID_SIGMA_PX``): a located part's
   centroid comes from its sub-pixel outline, which blur, noise and the edges' sampling move;
   measured against the truth on rendered parts (nuts, washers, discs, bolts), once carried
-  to the plane to second order, it is about 0.025 px per coordinate. It is a property of the pixel, not of the calibration: it enters as
-  ``pixel_sigma``, the pixel's own noise.
+  to the plane to second order, it is about 0.025 px per coordinate. It is a property of
+  the pixel, not of the calibration: it enters as ``pixel_sigma``, the pixel's own noise.
 
 The first two are the model's bias, ``model_sigma_px`` = hypot(dot, lens): the core's
 ``FittedPlane.with_model_sigma`` adds it to every pixel's noise in quadrature (mapped to the
