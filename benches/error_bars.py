@@ -12,8 +12,8 @@ are honest, above 1 when they flatter, below when they are too cautious.
   the sub-pixel outlines), each matched to the nearest true centroid.
 * Parts in the robot frame: the same parts located with ``frame="robot"`` through a
   registration fitted to six touched dots (a random mirrored, turned and offset robot,
-  touches with ROBOT_TOUCH_NOISE_MM of noise per axis), against the truth mapped into the
-  robot's frame.
+  touches with ROBOT_TOUCH_NOISE_MM of noise per axis; ROBOTS_PER_SCENE of them), against
+  the truth mapped into the robot's frame.
 """
 
 from __future__ import annotations
@@ -42,6 +42,10 @@ MATCH_MM = 3.0
 # A robot's repeatability (mm, 1-sigma per axis), and the dots it touches to register:
 # the corners and two inside of a cols x rows board, as (col, row).
 ROBOT_TOUCH_NOISE_MM = 0.05
+
+# Registrations per scene: each is one draw of the touch noise, whose own error a single draw
+# would leave to chance (six touches fix the noise's size to about 25 %).
+ROBOTS_PER_SCENE = 8
 
 
 def _touched_dots(cols: int, rows: int) -> list[int]:
@@ -169,8 +173,7 @@ def measure_pair(
     cal = Calibration.from_detection(detect_board(view.image, view.board))
     cam = view.camera
     offset = float(np.hypot(cam.cx - (cam.width - 1) / 2.0, cam.cy - (cam.height - 1) / 2.0))
-    robot = random_robot(rng)
-    in_robot = registered(cal, robot, rng)
+    robots = [random_robot(rng) for _ in range(ROBOTS_PER_SCENE)]
     return SceneErrors(
         name,
         (cam.width, cam.height),
@@ -178,11 +181,16 @@ def measure_pair(
         cal.lens_model,
         board_point_errors(view, exact_pixels(cal), rng, board_points),
         part_errors(pair.objects, cal),
-        part_errors(
-            pair.objects,
-            in_robot,
-            locate=lambda image, c: locate_objects(image, c, frame="robot"),
-            to_truth_frame=lambda mm: _apply(robot, mm),
+        Errors.pooled(
+            [
+                part_errors(
+                    pair.objects,
+                    registered(cal, robot, rng),
+                    locate=lambda image, c: locate_objects(image, c, frame="robot"),
+                    to_truth_frame=lambda mm, robot=robot: _apply(robot, mm),
+                )
+                for robot in robots
+            ]
         ),
         cal,
     )
