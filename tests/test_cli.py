@@ -73,9 +73,22 @@ def test_demo_runs_the_whole_pipeline_on_a_rendered_scene(console_script: bool) 
     assert m and float(m.group(1)) > 0.1
     rows = [line for line in out.splitlines() if re.match(r"\s+ID:\d+ ", line)]
     assert len(rows) == 10
-    errors = [float(line.split()[-2]) for line in rows]
-    assert max(errors) < 0.3  # every object within 0.3 mm of where it really is
+    # ... error "mm", 1-sigma, angle, true angle
+    fields = [line.split() for line in rows]
+    errors = [float(f[f.index("mm") - 1]) for f in fields]
+    assert max(errors) < 0.1  # every object within 0.1 mm of where it really is
+    sigmas = [float(f[f.index("mm") + 1]) for f in fields]
+    assert 0.5 < np.sqrt(np.mean(np.square(errors))) / np.sqrt(np.mean(np.square(sigmas))) < 2
+    for f in fields:
+        if f[1] == "bolt":  # an axis, within half a degree of the truth
+            assert abs(float(f[-2]) - float(f[-1])) < 0.5, f
+        else:  # nuts are too round for one
+            assert f[-2:] == ["-", "-"], f
     assert "Located within" in out
+    m = re.search(r"Parts in robot mm within [0-9.]+ mm .* ([0-9.]+) mm at worst", out)
+    assert m and float(m.group(1)) < 0.2
+    m = re.search(r"the bolts' angles within ([0-9.]+) degree", out)
+    assert m and float(m.group(1)) < 0.5
 
 
 def test_no_command_prints_usage_and_fails() -> None:

@@ -457,9 +457,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Read frames from SOURCE, locate the objects in each in mm (board or "
         "robot frame) with their angles, keep their IDs from frame to frame, and write one "
         "line per frame (JSON, CSV or a template) to the output, or serve it to controllers "
-        "(tcp-listen://, on request with --trigger). Survives bad frames and a camera that drops out; Ctrl-C or SIGTERM "
-        "end it cleanly with a summary on stderr. Exits 1 if every frame failed, and at once "
-        "if the frames are not of the size the calibration was made on.",
+        "(tcp-listen://, on request with --trigger). Survives bad frames and a camera that "
+        "drops out; Ctrl-C or SIGTERM end it cleanly with a summary on stderr. Exits 1 if "
+        "every frame failed, and at once if the frames are not of the size the calibration "
+        "was made on.",
     )
     p.add_argument(
         "--source",
