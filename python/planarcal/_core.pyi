@@ -9,6 +9,10 @@ from planarcal.calib.lens_model import LensKind
 from planarcal.homography.robust import RobustMethod, StopReason
 
 __all__ = [
+    "EDGE_SIGMA_PX",
+    "MAX_ANGLE_SIGMA_DEG",
+    "MIN_ANISOTROPY",
+    "SAMPLES_PER_PART",
     "FittedPlane",
     "LensStd",
     "RadialLens",
@@ -16,6 +20,7 @@ __all__ = [
     "Tracks",
     "__version__",
     "_after_fork_in_child",
+    "area_centroids",
     "error_stats",
     "estimate_homography",
     "estimate_homography_robust",
@@ -23,8 +28,12 @@ __all__ = [
     "find_homography",
     "find_homography_robust",
     "frame_json",
+    "local_maps",
     "measure_contours",
     "median_grey",
+    "part_axes",
+    "part_poses",
+    "part_samples",
     "perspective_transform",
     "reading_order",
     "refine_dot_centres",
@@ -32,6 +41,10 @@ __all__ = [
     "transform_points",
 ]
 __version__: str
+SAMPLES_PER_PART: int
+MIN_ANISOTROPY: float
+EDGE_SIGMA_PX: float
+MAX_ANGLE_SIGMA_DEG: float
 
 # The exceptions the bindings raise are planarcal.errors' classes (pyo3::import_exception!).
 
@@ -223,6 +236,26 @@ def frame_json(
 ) -> str: ...
 def median_grey(grey: ArrayLike, row_step: int = 16, col_step: int = 2) -> int: ...
 def reading_order(centroids: ArrayLike, heights: ArrayLike) -> NDArray[np.int64]: ...
+def part_samples(centroids_px: ArrayLike, step_px: float) -> NDArray[np.float64]: ...
+def part_poses(
+    samples_mm: ArrayLike, moments_px: ArrayLike, areas_px: ArrayLike, step_px: float
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+]: ...
+def local_maps(
+    samples_mm: ArrayLike, step_px: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+def area_centroids(
+    positions: ArrayLike, jacobians: ArrayLike, hessians: ArrayLike, moments_px: ArrayLike
+) -> NDArray[np.float64]: ...
+def part_axes(
+    moments_px: ArrayLike, areas_px: ArrayLike, jacobians: ArrayLike | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
 def refine_dot_centres(
     ink_dark: ArrayLike, points: ArrayLike, diameters: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.uint8]]: ...

@@ -23,33 +23,38 @@ on 7 points per part: the centroid, a step either side along x and y, and a step
 along the diagonal), so they hold whatever the mapping composes (a lens model, a lift to the
 parts' height, a registration to a robot's frame). Their error is the step squared times the
 mapping's next derivative: negligible at a pixel.
+
+The arithmetic (the sample points, the differences, the centroid's formula) is the Rust core's
+(planarcal_core::part_pose, through ``_core.part_samples``, ``_core.local_maps`` and
+``_core.area_centroids``); this module calls the mapping between them. The production loop
+goes through ``_core.part_poses``, which does all of it and the axis in one call.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planarcal import _core
 from planarcal.errors import ArgumentError
 
 F64 = NDArray[np.float64]
 
-__all__ = ["STEP_PX", "LocalMap", "area_centroids", "local_maps"]
+__all__ = ["SAMPLES_PER_PART", "STEP_PX", "LocalMap", "area_centroids", "local_maps"]
 
 STEP_PX = 1.0
 """The differences' step, px: far below the scale on which the mapping bends, far above the
 digits the subtraction loses (1e-16 of a position of a few hundred mm)."""
 
+SAMPLES_PER_PART: int = _core.SAMPLES_PER_PART
+"""The mapping's sample points per part (``_core.part_samples``): the centroid, +x, -x, +y,
+-y, and +x+y, -x-y (for the cross derivative), in blocks of one point per part."""
+
 Mapping = Callable[[F64], tuple[ArrayLike, ArrayLike | None]]
 """Pixels (N, 2) -> (positions in the output frame (N, 2), their 1-sigma (N,) or None)."""
-
-# The points each part's mapping is sampled at, in steps: the centroid, +x, -x, +y, -y, and
-# +x+y, -x-y (for the cross derivative).
-_OFFSETS = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [-1, -1]], dtype=float)
 
 
 class LocalMap(NamedTuple):
@@ -68,57 +73,37 @@ class LocalMap(NamedTuple):
 def local_maps(mapping: Mapping, centroids_px: ArrayLike, step_px: float = STEP_PX) -> LocalMap:
     """The mapping, its Jacobian and second derivatives at each centroid (one call of
     `mapping` on the 7 n sample points). NaN where a sample point has no image."""
-    c = np.asarray(centroids_px, dtype=np.float64)
-    if c.ndim != 2 or c.shape[1] != 2:
-        raise ArgumentError(f"centroids_px must be (n, 2) px, got shape {c.shape}")
-    if not (math.isfinite(step_px) and step_px > 0):
-        raise ArgumentError(f"step_px must be a finite number > 0, got {step_px!r}")
-    n, h = len(c), float(step_px)
+    samples = _core.part_samples(centroids_px, step_px)
+    n = len(samples) // SAMPLES_PER_PART
     if n == 0:
         return LocalMap(np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2, 2)), np.zeros((0, 2, 3)))
-    k = len(_OFFSETS)
-    mapped, std = mapping((c[None, :, :] + h * _OFFSETS[:, None, :]).reshape(-1, 2))
-    out = np.asarray(mapped, dtype=np.float64)
-    if out.shape != (k * n, 2):
-        raise ArgumentError(
-            f"the mapping must return one 2-D position per pixel, (N, 2): got {out.shape} "
-            f"for {k * n} points"
-        )
-    f0, px, mx, py, my, pp, mm = out.reshape(k, n, 2)
-    jac = np.stack([(px - mx) / (2.0 * h), (py - my) / (2.0 * h)], axis=2)
-    fxx = (px + mx - 2.0 * f0) / (h * h)
-    fyy = (py + my - 2.0 * f0) / (h * h)
-    fxy = (pp + mm - px - mx - py - my + 2.0 * f0) / (2.0 * h * h)
-    centre_std = None if std is None else np.asarray(std, dtype=np.float64).reshape(k, n)[0]
-    return LocalMap(f0, centre_std, jac, np.stack([fxx, fxy, fyy], axis=2))
+    mapped, std = mapping(samples)
+    out = checked_mapped(mapped, len(samples))
+    position, jacobian, hessian = _core.local_maps(out, step_px)
+    centre_std = None if std is None else centre_block(std, n)
+    return LocalMap(position, centre_std, jacobian, hessian)
 
 
 def area_centroids(local: LocalMap, moments_px: ArrayLike) -> F64:
     """Each part's centroid on the plane (n, 2), from its image area's central second moments
     (n, 3: [mu20, mu11, mu02] / area, px^2) and the mapping near its image centroid: see the
-    module docstring."""
-    m = np.asarray(moments_px, dtype=np.float64)
-    n = len(local.position)
-    if m.shape != (n, 3):
-        raise ArgumentError(f"moments_px must be (n, 3) with n = {n}, got {m.shape}")
-    jac, hes = local.jacobian, local.hessian
-    fx, fy = jac[:, :, 0], jac[:, :, 1]  # (n, 2) each: d out / dx, d out / dy
-    fxx, fxy, fyy = hes[:, :, 0], hes[:, :, 1], hes[:, :, 2]
-    det = fx[:, 0] * fy[:, 1] - fx[:, 1] * fy[:, 0]
-    # d det / dx and d det / dy, over det: the gradient of log |det J|.
-    ddx = _cross(fxx, fy) + _cross(fx, fxy)
-    ddy = _cross(fxy, fy) + _cross(fx, fyy)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gx, gy = ddx / det, ddy / det
-    mu20, mu11, mu02 = m[:, 0], m[:, 1], m[:, 2]
-    # J M g: the area scale's lean towards one side of the part.
-    mgx, mgy = mu20 * gx + mu11 * gy, mu11 * gx + mu02 * gy
-    lean = fx * mgx[:, None] + fy * mgy[:, None]
-    # 1/2 H : M: the mapping's bend across the part.
-    bend = 0.5 * (fxx * mu20[:, None] + 2.0 * fxy * mu11[:, None] + fyy * mu02[:, None])
-    return np.asarray(local.position + lean + bend, dtype=np.float64)
+    module docstring. NaN where it is not finite."""
+    return _core.area_centroids(local.position, local.jacobian, local.hessian, moments_px)
 
 
-def _cross(a: F64, b: F64) -> F64:
-    """The 2-D cross product of rows: a_x b_y - a_y b_x."""
-    return np.asarray(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], dtype=np.float64)
+def checked_mapped(mapped: ArrayLike, count: int) -> F64:
+    """The mapping's positions for `count` sample points as float64 (count, 2), else an
+    ArgumentError naming the shape it returned."""
+    out = np.asarray(mapped, dtype=np.float64)
+    if out.shape != (count, 2):
+        raise ArgumentError(
+            f"the mapping must return one 2-D position per pixel, (N, 2): got {out.shape} "
+            f"for {count} points"
+        )
+    return out
+
+
+def centre_block(values: ArrayLike, n: int) -> F64:
+    """The sample points' values (7 n) at the n centroids themselves (the first block)."""
+    block: F64 = np.asarray(values, dtype=np.float64).reshape(SAMPLES_PER_PART, n)[0]
+    return block

@@ -23,7 +23,7 @@ from planarcal import _core
 from planarcal.errors import ImageError
 from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
-from planarcal.live.local_map import area_centroids, local_maps
+from planarcal.live.local_map import STEP_PX, centre_block
 from planarcal.live.part_angle import PartAxes, part_axes
 
 if TYPE_CHECKING:
@@ -260,12 +260,12 @@ def locate_objects(
         )
 
     # Each part's centroid on the plane (not the image of its image centroid: see
-    # planarcal.live.local_map) and its axis, from one mapping of the points round it.
-    local = local_maps(to_frame, px)
-    mm = area_centroids(local, found.moments)
-    std = local.std
-    assert std is not None
-    axes = part_axes(found.moments, found.areas, local.jacobian)
+    # planarcal.live.local_map) and its axis, from one mapping of the points round it and
+    # one core call.
+    samples = _core.part_samples(px, STEP_PX)
+    mapped, std = to_frame(samples)
+    poses = _core.part_poses(mapped, found.moments, found.areas, STEP_PX)
+    mm, axes, std = poses[0], PartAxes(*poses[2:]), centre_block(std, len(px))
     return [
         dataclasses.replace(o, world_mm=(float(x), float(y)), world_std_mm=float(s))
         for o, (x, y), s in zip(_objects(found, axes), mm, std, strict=True)

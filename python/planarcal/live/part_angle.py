@@ -47,18 +47,22 @@ given even though its sides have directions (a second-moment axis cannot tell th
   moves the off-diagonal moment by sigma_e sqrt(P / 2) tr(C) / A for an outline of length P
   round an area A, hence the axis by sigma_e sqrt(P / 2) / (A a) radians for anisotropy a.
   A small part needs to be more elongated than a large one for its axis to mean as much.
+
+The arithmetic (the moments through the Jacobian, the eigen-axis, the rule, the image
+direction) is the Rust core's (planarcal_core::part_pose, ``_core.part_axes``; the production
+loop's ``_core.part_poses`` gives the axes with the centroids in one call), and so are the
+constants below (re-exported here).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planarcal.errors import ArgumentError
+from planarcal import _core
 from planarcal.live.local_map import STEP_PX, local_maps
 
 F64 = NDArray[np.float64]
@@ -75,14 +79,14 @@ __all__ = [
     "wrap_deg",
 ]
 
-MIN_ANISOTROPY = 0.08
+MIN_ANISOTROPY: float = _core.MIN_ANISOTROPY
 """Below this (l1 - l2) / (l1 + l2), a part is too round for an axis (an ellipse of axes
 1.08 : 1): 2.7 times the most measured on round parts; see the module docstring."""
 
-EDGE_SIGMA_PX = 0.12
+EDGE_SIGMA_PX: float = _core.EDGE_SIGMA_PX
 """The outline's edge noise in the angle noise model, px (see the module docstring)."""
 
-MAX_ANGLE_SIGMA_DEG = 2.0
+MAX_ANGLE_SIGMA_DEG: float = _core.MAX_ANGLE_SIGMA_DEG
 """An axis whose 1-sigma from the outline's noise exceeds this is not given, degrees."""
 
 
@@ -120,32 +124,18 @@ def part_axes(
     """Each part's axis in the output frame from its moments (n, 3: [mu20, mu11, mu02] / area,
     px^2), its enclosed area (n,, px^2) and the mapping's Jacobian at its centroid (n, 2, 2,
     from `jacobians`; None: the output frame is the image's, angles in pixels, from +x (right)
-    towards +y (down)). See the module docstring for the convention and the roundness rule."""
-    m, area, jac = _checked(moments_px, areas_px, jacobian)
-    angles, gap, trace = _angles(m, area, jac[:, 0, 0], jac[:, 0, 1], jac[:, 1, 0], jac[:, 1, 1])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        anisotropy = np.where(trace > 0, gap / trace, 0.0)
-        lever = np.where(area > 0, _noise_lever(m) / area, np.inf)
-        sigma = np.degrees(np.where(gap > 0, lever * trace / gap, np.inf))
-    # The axis's direction in the image: J^-1 applied to the output frame's unit axis.
-    n = len(m)
-    theta = np.radians(angles)
-    axis_out = np.stack([np.cos(theta), np.sin(theta)], axis=1)
-    axes = np.full((n, 2), np.nan)
-    ok = np.isfinite(angles) & (np.abs(np.linalg.det(jac)) > 0)
-    if ok.any():
-        d = np.linalg.solve(jac[ok], axis_out[ok][:, :, None])[:, :, 0]
-        axes[ok] = d / np.linalg.norm(d, axis=1, keepdims=True)
-    angles = np.where(np.isfinite(axes[:, 0]), angles, np.nan)
-    return PartAxes(angles, axes, anisotropy, sigma)
+    towards +y (down)). See the module docstring for the convention and the roundness rule.
+    A part whose moments, area or Jacobian are not finite gets NaN throughout; one whose
+    Jacobian is singular has no axis."""
+    area = np.asarray(areas_px, dtype=np.float64).reshape(-1)
+    return PartAxes(*_core.part_axes(moments_px, area, jacobian))
 
 
 def part_angles_deg(moments_px: ArrayLike, areas_px: ArrayLike, jacobian: ArrayLike) -> F64:
     """Each part's angle in the frame the Jacobians (n, 2, 2, from `jacobians` or
     local_map.local_maps) take pixels to, degrees in [-90, 90), NaN where it has no axis:
-    part_axes' angles without the image directions, for the production loop."""
-    m, area, jac = _checked(moments_px, areas_px, jacobian)
-    return _angles(m, area, jac[:, 0, 0], jac[:, 0, 1], jac[:, 1, 0], jac[:, 1, 1])[0]
+    part_axes' angles without the image directions."""
+    return part_axes(moments_px, areas_px, jacobian).angles_deg
 
 
 def axis_is_defined(anisotropy: ArrayLike, sigma_deg: ArrayLike) -> NDArray[np.bool_]:
@@ -156,72 +146,7 @@ def axis_is_defined(anisotropy: ArrayLike, sigma_deg: ArrayLike) -> NDArray[np.b
     return np.asarray((a >= MIN_ANISOTROPY) & (s <= MAX_ANGLE_SIGMA_DEG), dtype=bool)
 
 
-def _checked(
-    moments_px: ArrayLike, areas_px: ArrayLike, jacobian: ArrayLike | None
-) -> tuple[F64, F64, F64]:
-    m = np.asarray(moments_px, dtype=np.float64)
-    if m.ndim != 2 or m.shape[1] != 3:
-        raise ArgumentError(f"moments_px must be (n, 3) [mu20, mu11, mu02], got {m.shape}")
-    n = len(m)
-    area = np.asarray(areas_px, dtype=np.float64).reshape(-1)
-    if area.shape != (n,):
-        raise ArgumentError(f"areas_px must hold one area per part ({n}), got {area.shape}")
-    if jacobian is None:
-        return m, area, np.broadcast_to(np.eye(2), (n, 2, 2))
-    jac = np.asarray(jacobian, dtype=np.float64)
-    if jac.shape != (n, 2, 2):
-        raise ArgumentError(f"jacobian must be (n, 2, 2) with n = {n}, got {jac.shape}")
-    return m, area, jac
-
-
-def _noise_lever(m: F64) -> F64:
-    """sigma_e sqrt(P / 2), the angle's 1-sigma in radians times the anisotropy and the area,
-    with the outline's length P ~ 2 pi sqrt(2 tr C_px) (exact for a disc, close for an
-    ellipse or a rectangle)."""
-    return np.asarray(_LEVER * np.sqrt(np.sqrt(np.abs(m[:, 0] + m[:, 2]))), dtype=np.float64)
-
-
-# sigma_e sqrt(P / 2) = _LEVER tr(C_px)^(1/4).
-_LEVER = EDGE_SIGMA_PX * math.sqrt(math.pi * math.sqrt(2.0))
-# The 1-sigma bar in radians: sigma <= bar <=> lever * trace <= bar * area * gap.
-_SIGMA_BAR = math.radians(MAX_ANGLE_SIGMA_DEG)
-
-
-def _angles(m: F64, area: F64, a0: F64, a1: F64, b0: F64, b1: F64) -> tuple[F64, F64, F64]:
-    """(angles_deg, l1 - l2, l1 + l2) in the output frame from the pixel moments, the areas and
-    the Jacobians' rows (a0, a1) and (b0, b1), the angles NaN where axis_is_defined says no
-    (its bars written without a division). Whole arrays at a time: in the running loop
-    (caches cold after the image filters) 115-135 us a frame of ten parts, against 165-195 us
-    for a loop over floats."""
-    cxx, cxy, cyy = m[:, 0], m[:, 1], m[:, 2]
-    # C_out = J C_px J^T, written out: the enclosed area's second moments on the plane, to
-    # first order.
-    xx = (a0 * cxx + 2.0 * a1 * cxy) * a0 + a1 * a1 * cyy
-    yy = (b0 * cxx + 2.0 * b1 * cxy) * b0 + b1 * b1 * cyy
-    xy = a0 * b0 * cxx + (a0 * b1 + a1 * b0) * cxy + a1 * b1 * cyy
-    diff = xx - yy
-    gap = np.hypot(diff, 2.0 * xy)
-    trace = xx + yy
-    defined = (
-        (trace > 0)
-        & (gap >= MIN_ANISOTROPY * trace)
-        & (_noise_lever(m) * trace <= _SIGMA_BAR * area * gap)
-    )
-    angles = np.degrees(0.5 * np.arctan2(2.0 * xy, diff))
-    # Into [-90, 90): arctan2 gives (-180, 180], so only +90 needs folding.
-    angles[angles >= 90.0] -= 180.0
-    angles[~defined] = np.nan
-    return angles, gap, trace
-
-
 def wrap_deg(angles_deg: ArrayLike) -> F64:
     """Axis angles folded into [-90, 90) (an axis at theta is the one at theta + 180)."""
     a = np.asarray(angles_deg, dtype=np.float64)
     return np.asarray((a + 90.0) % 180.0 - 90.0, dtype=np.float64)
-
-
-def _points(value: ArrayLike, name: str) -> F64:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ArgumentError(f"{name} must be (n, 2) px, got shape {arr.shape}")
-    return arr

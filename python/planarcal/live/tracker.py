@@ -63,9 +63,8 @@ from planarcal import _core
 from planarcal.calib.calibration import Calibration
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, StateError
 from planarcal.live.capture import Camera, Frame
-from planarcal.live.local_map import area_centroids, local_maps
+from planarcal.live.local_map import STEP_PX, centre_block
 from planarcal.live.objects import _detect, detect_objects
-from planarcal.live.part_angle import part_angles_deg
 from planarcal.robot.output_frame import Coords, checked_frame
 
 F64 = NDArray[np.float64]
@@ -362,12 +361,14 @@ class Tracker:
         stage["detect"] += t1 - t0
         px = found.centroids
         # One call maps the whole frame (and its uncertainty) in the core, at each centroid
-        # and the points round it that give the mapping's derivatives there: each part's
-        # centroid on the plane, and its axis turned into the output frame.
-        local = local_maps(self._map, px)
-        mm = area_centroids(local, found.moments)
-        std = local.std if local.std is not None else np.zeros(len(px))
-        angles = part_angles_deg(found.moments, found.areas, local.jacobian)
+        # and the points round it that give the mapping's derivatives there (see
+        # planarcal.live.local_map); one more gives each part's centroid on the plane and its
+        # axis turned into the output frame (part_angle). The centroids' own 1-sigma is that
+        # of the samples' first block.
+        samples = _core.part_samples(px, STEP_PX)
+        mapped, std = self._map(samples) if len(px) else (samples, samples[:, 0])
+        mm, _, angles, _, _, _ = _core.part_poses(mapped, found.moments, found.areas, STEP_PX)
+        std = centre_block(std, len(px))
         t2 = time.perf_counter()
         stage["map"] += t2 - t1
         ids = self._tracks.update(mm)

@@ -13,8 +13,9 @@
 //! give each point's uncertainty too (what the bindings map through); `contours` measures a
 //! frame's traced object outlines (`image`, `smooth`, `outline`: moved to the grey-level edge,
 //! sub-pixel), `tracking` keeps their IDs from frame to frame and `json_line` writes each
-//! frame as the production loop's JSON line. `point_failure` says why a point has no image,
-//! for the transforms and the mappers alike.
+//! frame as the production loop's JSON line, and `part_pose` gives each part's centroid on the
+//! plane and its axis from the mapping sampled round it. `point_failure` says why a point has
+//! no image, for the transforms and the mappers alike.
 //! Geometry is f64; nothing panics on user input.
 //!
 //! The modules are the crate's own; its surface is the items re-exported here.
@@ -39,6 +40,7 @@ mod mapper;
 mod normalize;
 mod orientation;
 mod outline;
+mod part_pose;
 mod plane_model;
 mod point_failure;
 mod refine;
@@ -69,6 +71,10 @@ pub use json_line::{FrameObjects, ObjectCountMismatch};
 pub use leave_one_out::leave_one_out;
 pub use lens::{LensError, RadialLens};
 pub use mapper::{PlaneMapper, Undistortion};
+pub use part_pose::{
+    part_poses, part_samples, LocalMap, PartAxis, PartCountMismatch, PartPose, EDGE_SIGMA_PX,
+    MAX_ANGLE_SIGMA_DEG, MIN_ANISOTROPY, SAMPLE_OFFSETS,
+};
 pub use plane_model::{fit_plane, plane_fit_at, LensParams, PlaneFit, PlaneModel};
 pub use point_failure::{PointFailure, PointReport, POINT_FAILURES};
 pub use refine::RefineReport;

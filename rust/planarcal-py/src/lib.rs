@@ -8,6 +8,7 @@ mod dot_centres;
 mod errors;
 mod estimate;
 mod lens;
+mod part_pose;
 mod plane_model;
 mod reprojection;
 mod robust;
@@ -47,6 +48,15 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(transform::perspective_transform, m)?)?;
     m.add_function(wrap_pyfunction!(reprojection::reprojection_errors, m)?)?;
     m.add_function(wrap_pyfunction!(reprojection::error_stats, m)?)?;
+    m.add_function(wrap_pyfunction!(part_pose::part_samples, m)?)?;
+    m.add_function(wrap_pyfunction!(part_pose::part_poses, m)?)?;
+    m.add_function(wrap_pyfunction!(part_pose::local_maps, m)?)?;
+    m.add_function(wrap_pyfunction!(part_pose::area_centroids, m)?)?;
+    m.add_function(wrap_pyfunction!(part_pose::part_axes, m)?)?;
+    m.add("SAMPLES_PER_PART", planarcal_core::SAMPLE_OFFSETS.len())?;
+    m.add("MIN_ANISOTROPY", planarcal_core::MIN_ANISOTROPY)?;
+    m.add("EDGE_SIGMA_PX", planarcal_core::EDGE_SIGMA_PX)?;
+    m.add("MAX_ANGLE_SIGMA_DEG", planarcal_core::MAX_ANGLE_SIGMA_DEG)?;
     m.add_function(wrap_pyfunction!(_after_fork_in_child, m)?)?;
     Ok(())
 }
