@@ -104,6 +104,7 @@ def checked_mapped(mapped: ArrayLike, count: int) -> F64:
 
 
 def centre_block(values: ArrayLike, n: int) -> F64:
-    """The sample points' values (7 n) at the n centroids themselves (the first block)."""
-    block: F64 = np.asarray(values, dtype=np.float64).reshape(SAMPLES_PER_PART, n)[0]
+    """The sample points' values (7 n, ...) at the n centroids themselves (the first block)."""
+    arr = np.asarray(values, dtype=np.float64)
+    block: F64 = arr.reshape(SAMPLES_PER_PART, n, *arr.shape[1:])[0]
     return block
