@@ -92,7 +92,7 @@ def test_the_budget_is_in_the_production_path_and_survives_a_file(
     assert cal._fit.plane.model_sigma_px == budget.model_sigma_px
     px = pair.calibration.dot_centres_px
     mm, std = cal.image_to_world(px, return_std=True)
-    loop_mm, loop_std = cal._frame_mapper()(px)
+    loop_mm, loop_std = cal._frame_mapper()(px, len(px))
     np.testing.assert_array_equal(loop_mm, mm)
     np.testing.assert_array_equal(loop_std, std)
     # Recomputed from the stored points on load: the same budget, the same bars.

@@ -265,7 +265,7 @@ def test_a_calibration_maps_through_the_same_path(planes: dict[str, FittedPlane]
     px = _pixels(np.random.default_rng(8), 500)
     mm, std = cal.image_to_world(px, return_std=True)
     # The production loop's mapper gives the same bits, and the model sends them back.
-    loop_mm, loop_std = cal._frame_mapper()(px)
+    loop_mm, loop_std = cal._frame_mapper()(px, len(px))
     np.testing.assert_array_equal(loop_mm, mm)
     np.testing.assert_array_equal(loop_std, std)
     assert np.abs(cal.world_to_image(mm) - px).max() <= 1e-8

@@ -159,10 +159,13 @@ def test_the_robot_std_adds_the_registrations_own_error(registered: Calibration)
     np.testing.assert_allclose(robot_std, np.sqrt(board_std**2 + own**2))
     assert np.all(robot_std > board_std)
     assert np.all(own > 0)
-    # The production loop's mapper gives the same.
-    mm, std = registered._frame_mapper(0.0, "robot")(px)
+    # The production loop's mapper gives the same (the 1-sigma of the rows asked for).
+    mm, std = registered._frame_mapper(0.0, "robot")(px, len(px))
     np.testing.assert_allclose(mm, robot)
     np.testing.assert_allclose(std, robot_std)
+    mm, std = registered._frame_mapper(0.0, "robot")(px, 3)
+    np.testing.assert_allclose(mm, robot)
+    np.testing.assert_allclose(std, robot_std[:3])
     # Worse far from the touched points than at their centroid.
     centre = frame.plane_mm.mean(axis=0)
     assert frame.std_mm(centre + np.array([600.0, 0.0])) > 3 * frame.std_mm(centre)

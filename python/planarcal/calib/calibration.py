@@ -586,11 +586,13 @@ class Calibration:
 
     def _frame_mapper(
         self, height: float = 0.0, frame: Coords = "board"
-    ) -> Callable[[F64], tuple[F64, F64]]:
+    ) -> Callable[[F64, int], tuple[F64, F64]]:
         """image_to_world(px, height=height, return_std=True, frame=frame) for the production
-        loop, its arguments checked here once: the returned function takes an (N, 2) float64
-        array of pixels straight to the core (one call) when there is nothing to undistort or
-        lift, then through the registration for the robot frame."""
+        loop, its arguments checked here once. The returned function takes an (N, 2) float64
+        array of pixels and how many of its first rows need their 1-sigma (a frame's part
+        centroids: the points round them are mapped only for the mapping's derivatives, and
+        the covariance is most of a point's cost); it goes straight to the core when there is
+        nothing to undistort or lift, then through the registration for the robot frame."""
         registration = (
             self.robot_frame if checked_frame(frame, self.robot_frame) == "robot" else None
         )
@@ -600,20 +602,21 @@ class Calibration:
         plane = self._fit.plane
         direct = self.intrinsics is None and height == 0.0
 
-        def board(px: F64) -> tuple[F64, F64]:
+        def board(px: F64, with_std: int) -> tuple[F64, F64]:
             if direct:
-                return plane.image_to_world_std(px, OUTLINE_CENTROID_SIGMA_PX)
-            mm, std = self.image_to_world(px, height=height, return_std=True)
-            return mm, std
+                _, std = plane.image_to_world_std(px[:with_std], OUTLINE_CENTROID_SIGMA_PX)
+                return plane.image_to_world(px), std
+            _, std = self.image_to_world(px[:with_std], height=height, return_std=True)
+            return self.image_to_world(px, height=height), std
 
         if registration is None:
             return board
 
-        def robot(px: F64) -> tuple[F64, F64]:
-            mm, std = board(px)
-            out, robot_std = board_to_robot(registration, mm, std)
+        def robot(px: F64, with_std: int) -> tuple[F64, F64]:
+            mm, std = board(px, with_std)
+            _, robot_std = board_to_robot(registration, mm[:with_std], std)
             assert robot_std is not None
-            return out, robot_std
+            return registration.to_robot(mm), robot_std
 
         return robot
 

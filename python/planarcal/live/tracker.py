@@ -63,7 +63,7 @@ from planarcal import _core
 from planarcal.calib.calibration import Calibration
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, StateError
 from planarcal.live.capture import Camera, Frame
-from planarcal.live.local_map import STEP_PX, centre_block
+from planarcal.live.local_map import STEP_PX
 from planarcal.live.objects import _detect, detect_objects
 from planarcal.robot.output_frame import Coords, checked_frame
 
@@ -364,11 +364,10 @@ class Tracker:
         # and the points round it that give the mapping's derivatives there (see
         # planarcal.live.local_map); one more gives each part's centroid on the plane and its
         # axis turned into the output frame (part_angle). The centroids' own 1-sigma is that
-        # of the samples' first block.
+        # of the samples' first block, the only one that needs it.
         samples = _core.part_samples(px, STEP_PX)
-        mapped, std = self._map(samples) if len(px) else (samples, samples[:, 0])
+        mapped, std = self._map(samples, len(px)) if len(px) else (samples, samples[:, 0])
         mm, _, angles, _, _, _ = _core.part_poses(mapped, found.moments, found.areas, STEP_PX)
-        std = centre_block(std, len(px))
         t2 = time.perf_counter()
         stage["map"] += t2 - t1
         ids = self._tracks.update(mm)
