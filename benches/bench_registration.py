@@ -9,7 +9,7 @@ registered with Calibration.register. Measured at the parts:
 - the map's own error (RobotFrame.to_robot of the parts' true board positions against their
   true robot positions) against the 1-sigma it predicts there (RobotFrame.std_mm): RMS, worst,
   and RMS actual / RMS predicted;
-- the parts' whole error in robot mm (image_to_world(frame="robot")) against the truth, and
+- the parts' whole error in robot mm (locate_objects(frame="robot")) against the truth, and
   against the robot-frame 1-sigma it reports (which also holds the board 1-sigma).
 
 Run: python benches/bench_registration.py [--robots 200]
@@ -61,7 +61,6 @@ def main() -> None:
     cal = Calibration.from_detection(detect_board(scene.calibration.image, synth.PAPER_BOARD))
     assert cal.board is not None
     found = locate_objects(scene.objects.image, cal)
-    px = np.array([o.centroid_px for o in found])
     seen = np.array([o.world_mm for o in found])
     truth = scene.objects.object_centroids_mm
     truth = truth[[int(np.argmin(np.hypot(*(truth - s).T))) for s in seen]]
@@ -83,7 +82,9 @@ def main() -> None:
             true_robot = _map(robot, truth)
             map_err.append(np.hypot(*(frame.to_robot(truth) - true_robot).T))
             map_pred.append(frame.std_mm(truth))
-            mm, std = reg.image_to_world(px, frame="robot", return_std=True)
+            located = locate_objects(scene.objects.image, reg, frame="robot")
+            mm = np.array([o.world_mm for o in located], dtype=np.float64)
+            std = np.array([o.world_std_mm for o in located], dtype=np.float64)
             part_err.append(np.hypot(*(mm - true_robot).T))
             part_std.append(std)
         e, p = np.concatenate(map_err), np.concatenate(map_pred)
