@@ -112,6 +112,8 @@ def test_template_renders_each_object_with_its_specs() -> None:
         ("{x}\n{y}", "line break"),
         ("  ", "non-empty"),
         ("{x:{y}}", "nested"),
+        ("{x:>999999999}", r"\{x:>999999999\}: widths and precisions go up to 64"),
+        ("{x:.100f}", "widths and precisions go up to 64"),
     ],
 )
 def test_bad_templates_are_refused_when_compiled(template: str, message: str) -> None:

@@ -48,6 +48,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import re
 import string
 import time
 from typing import Any, Protocol
@@ -166,6 +167,10 @@ def line_format(name: str | None = None, template: str | None = None) -> LineFor
     return LineFormat(name, template)
 
 
+MAX_SPEC_NUMBER = 64
+"""The largest width or precision a template's field may ask for."""
+
+
 class _Compiled:
     """A template with named fields turned into a positional one (``{0:.2f}``) and the
     names in that order, so that a row renders with one ``str.format(*values)``."""
@@ -194,6 +199,12 @@ class _Compiled:
                 fields.append(name)
             if spec and ("{" in spec):
                 raise LineFormatError(f"template {template!r}: nested fields are not allowed")
+            # A width or precision of millions would build megabytes a part, every frame.
+            if spec and any(int(d) > MAX_SPEC_NUMBER for d in re.findall(r"\d+", spec)):
+                raise LineFormatError(
+                    f"template {template!r}: {{{name}:{spec}}}: widths and precisions go up "
+                    f"to {MAX_SPEC_NUMBER}"
+                )
             conv = f"!{conversion}" if conversion else ""
             out.append("{" + str(fields.index(name)) + conv + (f":{spec}" if spec else "") + "}")
         self.source = template
