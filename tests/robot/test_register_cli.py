@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import subprocess
 import sys
@@ -147,8 +148,23 @@ def test_a_file_that_is_not_text_or_not_there_is_refused(tmp_path: Path) -> None
         read_touch_csv(path)
     with pytest.raises(pc.ArgumentError, match="no touch-point file at"):
         read_touch_csv(tmp_path / "missing.csv")
-    with pytest.raises(pc.ArgumentError, match="cannot read the touch-point file"):
-        read_touch_csv(tmp_path)
+    # What is not a file of a few lines is refused at once: a folder, a FIFO (which would
+    # wait for a writer for ever), a device, a file of megabytes.
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    for not_a_file in (tmp_path, fifo, Path("/dev/zero")):
+        with pytest.raises(pc.ArgumentError, match="is not a regular file"):
+            read_touch_csv(not_a_file)
+    huge = tmp_path / "huge.csv"
+    huge.write_bytes(b"dot,robot_x,robot_y\n" + b"0,1,2\n" * 200_000)
+    with pytest.raises(pc.ArgumentError, match="is over 1 MiB"):
+        read_touch_csv(huge)
+    unreadable = tmp_path / "locked.csv"
+    unreadable.write_text("dot,robot_x,robot_y\n")
+    unreadable.chmod(0)
+    if not os.access(unreadable, os.R_OK):  # root reads it all the same
+        with pytest.raises(pc.ArgumentError, match="cannot read the touch-point file"):
+            read_touch_csv(unreadable)
 
 
 # -- the command ------------------------------------------------------------------------------

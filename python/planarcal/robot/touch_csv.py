@@ -20,6 +20,7 @@ import csv
 import dataclasses
 import math
 import os
+import stat
 from pathlib import Path
 from typing import Literal
 
@@ -70,6 +71,10 @@ class TouchPoints:
         return f"{where} ({x:g}, {y:g} {unit})"
 
 
+MAX_FILE_BYTES = 2**20
+"""The largest touch-point file read (a few dozen lines are a few kB)."""
+
+
 def read_touch_csv(path: str | os.PathLike[str]) -> TouchPoints:
     """The pairs in the touch-point CSV at ``path``; ArgumentError naming the line for
     anything that cannot be read as one of the column sets, or naming the file if it cannot
@@ -77,7 +82,17 @@ def read_touch_csv(path: str | os.PathLike[str]) -> TouchPoints:
     p = Path(path)
     name = str(p)
     try:
-        text = p.read_text(encoding="utf-8-sig")
+        # A regular file of a sane size: a FIFO would wait for ever, /dev/zero never end.
+        if not stat.S_ISREG(p.stat().st_mode):
+            raise ArgumentError(f"the touch-point file {name!r} is not a regular file")
+        with p.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
+        if len(raw) > MAX_FILE_BYTES:
+            raise ArgumentError(
+                f"the touch-point file {name!r} is over {MAX_FILE_BYTES // 2**20} MiB: a "
+                "touch-point file holds a few lines"
+            )
+        text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise ArgumentError(f"{name}: not a UTF-8 text file ({e.reason})") from None
     except FileNotFoundError:
