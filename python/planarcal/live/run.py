@@ -41,6 +41,12 @@ from planarcal.live.tracker import LoopStats, Tracker
 PROGRESS_PERIOD_S = 0.25
 
 
+# Beyond these a setting is a typo: a controller waits seconds for its answer, not days (and
+# a timer that far off overflows the selector), and a client's queue is also capped in bytes.
+MAX_TRIGGER_TIMEOUT_S = 3600.0
+MAX_CLIENT_BUFFER_LINES = 1_000_000
+
+
 class Progress:
     """A one-line status on a terminal, rewritten in place; silent when not a terminal."""
 
@@ -234,9 +240,10 @@ def output_plan(args: argparse.Namespace) -> OutputPlan:
         word = "TRIGGER" if args.trigger_word is None else args.trigger_word
         check_trigger_word(word)
         timeout = 3.0 if args.trigger_timeout is None else args.trigger_timeout
-        if not (math.isfinite(timeout) and timeout > 0):
+        if not (math.isfinite(timeout) and 0 < timeout <= MAX_TRIGGER_TIMEOUT_S):
             raise OutputError(
-                f"--trigger-timeout must be a positive number of seconds, not {timeout}"
+                f"--trigger-timeout must be a positive number of seconds up to "
+                f"{MAX_TRIGGER_TIMEOUT_S:g}, not {timeout}"
             )
         server.update(trigger_word=word, trigger_timeout=timeout)
     else:
@@ -249,8 +256,11 @@ def output_plan(args: argparse.Namespace) -> OutputPlan:
     if args.client_buffer is not None:
         if not listening:
             raise OutputError(f"--client-buffer goes with --output tcp-listen://, not {spec!r}")
-        if args.client_buffer < 1:
-            raise OutputError(f"--client-buffer must be at least 1 line, not {args.client_buffer}")
+        if not 1 <= args.client_buffer <= MAX_CLIENT_BUFFER_LINES:
+            raise OutputError(
+                f"--client-buffer must be 1 to {MAX_CLIENT_BUFFER_LINES} lines, not "
+                f"{args.client_buffer}"
+            )
         server["max_pending_lines"] = args.client_buffer
     return OutputPlan(spec, fmt, server, bool(args.trigger))
 
