@@ -125,11 +125,21 @@ def random_paper_scene(
     tilt = arguments.real("max_tilt_deg", max_tilt_deg)
     if not 0.0 <= tilt <= 60.0:
         raise ArgumentError(f"max_tilt_deg must be 0 to 60, got {max_tilt_deg!r}")
+    pose = random_board_pose(rng, PAPER_CAMERA.focal_px / scale, tilt)
+    return _paper_render(PAPER_CAMERA, pose, PAPER_BOARD, objects, int(rng.integers(0, 2**31)))
+
+
+def random_board_pose(
+    rng: np.random.Generator, distance_mm: float, max_tilt_deg: float
+) -> PlanePose:
+    """A random view of the paper's board from ``distance_mm``: tilted up to ``max_tilt_deg``
+    about a random axis, rolled up to 3 degrees, aimed within 10 mm of the board's centre
+    (the draws in that order, so a seed always gives the same view)."""
     board = PAPER_BOARD
     middle = np.array([board.cols - 1, board.rows - 1]) * board.pitch / 2.0
-    pose = PlanePose(
-        distance_mm=PAPER_CAMERA.focal_px / scale,
-        tilt_deg=float(rng.uniform(0.0, tilt)),
+    return PlanePose(
+        distance_mm=float(distance_mm),
+        tilt_deg=float(rng.uniform(0.0, max_tilt_deg)),
         tilt_axis_deg=float(rng.uniform(0.0, 360.0)),
         roll_deg=float(rng.uniform(-3.0, 3.0)),
         look_at_mm=(
@@ -137,7 +147,6 @@ def random_paper_scene(
             float(middle[1] + rng.uniform(-10.0, 10.0)),
         ),
     )
-    return _paper_render(PAPER_CAMERA, pose, board, objects, int(rng.integers(0, 2**31)))
 
 
 def _paper_render(

@@ -16,9 +16,9 @@ import math
 import numpy as np
 
 from planarcal.errors import ArgumentError, ImageError
-from planarcal.synth.camera import CameraModel, PlanePose
+from planarcal.synth.camera import CameraModel
 from planarcal.synth.objects import SceneObject
-from planarcal.synth.paper import PAPER_BOARD, PaperScene, _paper_render
+from planarcal.synth.paper import PAPER_BOARD, PaperScene, _paper_render, random_board_pose
 
 WEBCAM_FOCAL_PX_PER_WIDTH = 1070.0 / 1280.0
 """A Logitech C525's focal length per pixel of image width (about 69 degrees diagonal)."""
@@ -122,21 +122,10 @@ def random_webcam_scene(
         raise ImageError(f"seed must be a non-negative whole number, got {seed!r}")
     rng = np.random.default_rng(int(seed))
     camera = webcam_camera(rng, size, centre_offset_px, max_centre_offset_px)
-    board = PAPER_BOARD
-    middle = np.array([board.cols - 1, board.rows - 1]) * board.pitch / 2.0
     scale = 1.9 * camera.width / 1280.0
-    pose = PlanePose(
-        distance_mm=float(camera.focal_px) / scale,
-        tilt_deg=float(rng.uniform(0.0, max_tilt_deg)),
-        tilt_axis_deg=float(rng.uniform(0.0, 360.0)),
-        roll_deg=float(rng.uniform(-3.0, 3.0)),
-        look_at_mm=(
-            float(middle[0] + rng.uniform(-10.0, 10.0)),
-            float(middle[1] + rng.uniform(-10.0, 10.0)),
-        ),
-    )
+    pose = random_board_pose(rng, float(camera.focal_px) / scale, max_tilt_deg)
     things = scattered_parts(rng, parts)
     seeds = rng.integers(0, 2**31, 2)
-    calibration = _paper_render(camera, pose, board, (), int(seeds[0]))
+    calibration = _paper_render(camera, pose, PAPER_BOARD, (), int(seeds[0]))
     objects = _paper_render(camera, pose, None, things, int(seeds[1]))
     return PaperScene(calibration, objects)
