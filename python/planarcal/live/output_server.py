@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import dataclasses
 import errno
 import selectors
 import socket
@@ -21,6 +20,7 @@ import time
 from collections.abc import Callable
 
 from planarcal.errors import OutputError
+from planarcal.live.output_server_stats import ClientStats, ServerStats
 from planarcal.live.output_sink import Output, OutputStats, encode_line
 from planarcal.live.output_socket import (
     LineBatch,
@@ -31,7 +31,7 @@ from planarcal.live.output_socket import (
 )
 from planarcal.live.output_spec import check_port, netloc
 
-__all__ = ["ClientStats", "ServerOutput", "ServerStats"]
+__all__ = ["ServerOutput"]
 
 # A request line longer than this is not a request: answered with an error and skipped.
 MAX_REQUEST_BYTES = 1024
@@ -48,57 +48,6 @@ _GONE_KEPT = 16
 
 # How often the fault check runs while requests wait for a frame, s.
 _FAULT_POLL_S = 0.1
-
-
-@dataclasses.dataclass(frozen=True, slots=True)
-class ClientStats:
-    """One controller's connection."""
-
-    peer: str
-    """Its address, ``host:port``."""
-    connected: bool
-    sent: int
-    """Lines (frames, answers, error lines) written to it whole."""
-    dropped: int
-    """Lines meant for it and not written: its queue overflowed behind a slow reader, or it
-    left with lines still queued."""
-    requests: int
-    """Trigger requests received from it."""
-    answers: int
-    """Frame lines queued in answer to its requests."""
-    error_lines: int
-    """Error lines queued for it (a request that could not be answered, an unknown one)."""
-    closed_by: str | None
-    """Why the connection ended (None while it is up)."""
-
-
-@dataclasses.dataclass(frozen=True, slots=True)
-class ServerStats(OutputStats):
-    """``OutputStats`` of a server: ``sent``, ``dropped`` and ``bytes_sent`` count lines per
-    client (a line that reaches three clients is sent three times), ``pending`` the lines
-    queued for all clients, ``connected`` that the server is listening. Then the server's
-    own figures."""
-
-    address: str
-    """Where it listens, ``host:port`` (the port the system chose for port 0)."""
-    clients: int
-    """Controllers connected now."""
-    accepted: int
-    """Connections accepted in all."""
-    refused: int
-    """Connections refused because ``max_clients`` were connected."""
-    lines: int
-    """Lines the loop sent (stream mode; each one goes to every client)."""
-    unheard: int
-    """Of those, lines sent while no client was connected (not counted as dropped)."""
-    requests: int
-    """Trigger requests received (the trigger word)."""
-    answers: int
-    """Frame lines queued in answer to a request."""
-    error_lines: int
-    """Error lines queued: requests that could not be answered, unknown requests."""
-    per_client: tuple[ClientStats, ...]
-    """The connected clients and the last few that left, oldest first."""
 
 
 class _Reply:

@@ -51,7 +51,8 @@ import os
 from typing import Any
 
 from planarcal.errors import OutputError
-from planarcal.live.output_server import ClientStats, ServerOutput, ServerStats
+from planarcal.live.output_server import ServerOutput
+from planarcal.live.output_server_stats import ClientStats, ServerStats
 from planarcal.live.output_sink import Output, OutputStats
 from planarcal.live.output_spec import parse_network_spec
 from planarcal.live.output_stream import FileOutput, StreamOutput
