@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import os
+import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,7 +31,15 @@ from planarcal.live.capture import Camera
 from planarcal.live.objects import locate_objects
 from planarcal.report import summary_json, summary_text, write_detection_failure, write_report
 from planarcal.report.drawing import draw_objects, png_bytes
-from planarcal.report.printable import CHECK_BAR_MM, PrintLayout, pitch_meaning, write_board
+from planarcal.report.printable import (
+    CHECK_BAR_MM,
+    PrintLayout,
+    page_refusal,
+    page_size,
+    pitch_meaning,
+    smaller_board,
+    write_board,
+)
 from planarcal.robot import register_command
 from planarcal.robot.output_frame import FRAMES, checked_frame
 from planarcal.synth import demo
@@ -44,14 +54,23 @@ def _board_arguments(p: argparse.ArgumentParser, *, for_printing: bool = False) 
     an image has no marker unless told (detection recognises an enlarged corner dot by
     itself), and its diameter, when none is given, is measured from the image."""
     g = p.add_argument_group("board (millimetres; the defaults are the paper's board)")
-    g.add_argument("--cols", type=int, default=14, help="dots along a row (default 14)")
-    g.add_argument("--rows", type=int, default=10, help="dots down a column (default 10)")
+    # One source for every command's defaults: a board printed with them is found with them.
+    default = CircleGridBoard()
+    g.add_argument(
+        "--cols", type=int, default=default.cols, help=f"dots along a row (default {default.cols})"
+    )
+    g.add_argument(
+        "--rows",
+        type=int,
+        default=default.rows,
+        help=f"dots down a column (default {default.rows})",
+    )
     g.add_argument(
         "--pitch",
         type=float,
-        default=20.0,
-        help="centre-to-centre distance (20); in the asymmetric layout the distance between "
-        "rows, half that between dots along a row",
+        default=default.pitch,
+        help=f"centre-to-centre distance ({default.pitch:g}); in the asymmetric layout the "
+        "distance between rows, half that between dots along a row",
     )
     g.add_argument(
         "--diameter",
@@ -106,6 +125,7 @@ def _board(args: argparse.Namespace) -> CircleGridBoard:
 
 # The pages `--page auto` tries, smallest first.
 AUTO_PAGES = ("A4", "A3", "A2", "A1", "A0")
+BOARD_MARGIN_MM = 10.0
 
 
 def _cmd_board(args: argparse.Namespace) -> int:
@@ -113,18 +133,26 @@ def _cmd_board(args: argparse.Namespace) -> int:
     if board.diameter is None:
         # A printed dot needs a size: half the neighbour distance, dots as wide as the gaps.
         board = dataclasses.replace(board, diameter=board.neighbour_distance / 2)
-    pages = AUTO_PAGES if args.page.lower() == "auto" else (args.page,)
+    auto = args.page.lower() == "auto"
     layout: PrintLayout | None = None
-    for page in pages:
-        try:
+    refused: str | None = None
+    for page in AUTO_PAGES if auto else (args.page,):
+        refused = page_refusal(
+            board,
+            page,
+            orientation=args.orientation,
+            margin_mm=args.margin,
+            offer=functools.partial(_offer, args, page),
+        )
+        if refused is None:
             layout = write_board(
                 board, args.output, page=page, orientation=args.orientation, margin_mm=args.margin
             )
             break
-        except BoardError:
-            if page == pages[-1]:
-                raise  # the board fits no page tried: the error names one that would
-    assert layout is not None
+    if layout is None:
+        # The board fits no page tried: the message names a page that would, and the
+        # command for a board that fits the last one.
+        raise BoardError(refused)
     print(f"wrote {args.output}: {board.describe()}, on {layout.page} {layout.orientation}.")
     print(f"{board.layout.capitalize()} grid: {pitch_meaning(board)}.")
     if args.diameter is None:
@@ -133,7 +161,47 @@ def _cmd_board(args: argparse.Namespace) -> int:
             "(no --diameter given)."
         )
     print("Print it at 100% (actual size, no fit-to-page) and check the bar measures 100 mm.")
+    if auto and layout.page != AUTO_PAGES[0]:
+        # Most printers take A4 or letter only: say which board each holds.
+        print(f"It needs {layout.page} paper.")
+        for small in ("A4", "letter"):
+            other = smaller_board(board, page_size(small), args.orientation, args.margin)
+            if other is not None:
+                print(f"On {small}: {_offer(args, small, other)}.")
     return 0
+
+
+def _board_command(args: argparse.Namespace, page: str, board: CircleGridBoard) -> str:
+    """The `planarcal board` command line that prints `board` on `page`, with the options of
+    `args` it keeps (output, orientation, margin, layout, marker)."""
+    words = ["planarcal board", "-o", shlex.quote(str(args.output)), "--page", shlex.quote(page)]
+    if args.orientation != "auto":
+        words += ["--orientation", args.orientation]
+    if args.margin != BOARD_MARGIN_MM:
+        words += ["--margin", f"{args.margin:g}"]
+    words += ["--cols", str(board.cols), "--rows", str(board.rows), "--pitch", f"{board.pitch:g}"]
+    # Sizes the user chose are kept, scaled with the pitch; unchosen ones follow it anyway.
+    if args.diameter is not None:
+        words += ["--diameter", f"{board.dots_mm():.10g}"]
+    if board.layout != "symmetric":
+        words += ["--layout", board.layout]
+    if not board.origin_marker:
+        words.append("--no-origin-marker")
+    elif board.marker_diameter is not None:
+        words += ["--marker-diameter", f"{board.marker_diameter:.10g}"]
+    return " ".join(words)
+
+
+def _offer(args: argparse.Namespace, page: str, board: CircleGridBoard) -> str:
+    """A smaller board that fits `page`, offered as its command line."""
+    return (
+        f"`{_board_command(args, page, board)}` ({_dots_and_pitch(board)}; calibrate with the "
+        "same --cols, --rows and --pitch)"
+    )
+
+
+def _dots_and_pitch(board: CircleGridBoard) -> str:
+    return f"{board.cols} x {board.rows} dots, {board.pitch:g} mm apart"
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
@@ -306,7 +374,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    print(demo.run())
+    if args.report is not None:
+        args.report.mkdir(parents=True, exist_ok=True)  # before the work, a bad place fails now
+    print(demo.run(report=args.report))
     return 0
 
 
@@ -334,7 +404,12 @@ def build_parser() -> argparse.ArgumentParser:
         "the board fits (default)",
     )
     p.add_argument("--orientation", default="auto", choices=("auto", "portrait", "landscape"))
-    p.add_argument("--margin", type=float, default=10.0, help="page margin in mm (10)")
+    p.add_argument(
+        "--margin",
+        type=float,
+        default=BOARD_MARGIN_MM,
+        help=f"page margin in mm ({BOARD_MARGIN_MM:g})",
+    )
     p.set_defaults(run=_cmd_board)
 
     p = commands.add_parser(
@@ -501,6 +576,14 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render the paper's setup (board, lens, blur, noise; then bolts and nuts at "
         "known places), calibrate, locate the objects, and say how far each is from the truth. "
         "Needs no camera and no files.",
+    )
+    p.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="write here what a real run writes: the calibration report's figures and tables, "
+        "the calibration file, the rendered images and the objects located, drawn on theirs",
     )
     p.set_defaults(run=_cmd_demo)
     return parser

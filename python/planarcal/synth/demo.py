@@ -5,13 +5,17 @@ planarcal.synth renders the paper's board seen by a 1280 x 720 webcam through a 
 bolts and 7 nuts at the positions of the paper's Table 5. The demo runs the pipeline a user
 runs on real images: find the board, calibrate, report, locate the objects in millimetres
 with their error bars and angles, register the board to a robot from six touched dots, and,
-because the scene is rendered, says how far every result is from the truth.
+because the scene is rendered, says how far every result is from the truth. With a report
+directory it writes what a user's run would (the report's figures, the calibration file, the
+images and the objects drawn on theirs), and it ends with the commands to run on a camera.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,13 +24,31 @@ from numpy.typing import NDArray
 from planarcal import synth
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
+from planarcal.files import atomic_write
 from planarcal.live.objects import locate_objects
-from planarcal.report import summary_text
+from planarcal.report import summary_text, write_report
+from planarcal.report.drawing import draw_objects, png_bytes
 from planarcal.synth import paper_data
 
+REPORT_EXAMPLE = "demo-report"
+"""The directory the demo's closing lines suggest for ``planarcal demo --report``."""
 
-def run(seed: int = 0) -> str:
-    """The demo's report, as text."""
+NEXT_STEPS = (
+    "On your own camera:",
+    "  planarcal board -o board.pdf    # print at 100%; it names a board for A4 or letter",
+    "  planarcal calibrate photo.png -o calib.json --report report",
+    "  planarcal locate objects.png --calibration calib.json --annotate located.png",
+    "  (or, frame after frame: planarcal run --source 0 --calibration calib.json)",
+)
+"""The demo's last lines: the commands a user runs on a real camera, the demo's steps."""
+
+
+def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
+    """The demo's report, as text; with ``report``, a directory (created if need be), also
+    its files there: the calibration report (``planarcal.report.write_report``: the figures,
+    the per-point table and summary.json), the calibration (calib.json), the rendered images
+    (board.png, objects.png) and the objects located, drawn on theirs (located.png), each
+    written atomically."""
     out: list[str] = []
     say = out.append
     start = time.perf_counter()
@@ -136,6 +158,21 @@ def run(seed: int = 0) -> str:
     )
     say("")
     say(f"Rendered, calibrated, located and registered in {time.perf_counter() - start:.1f} s.")
+    if report is None:
+        say(f"To see the figures and the images: planarcal demo --report {REPORT_EXAMPLE}")
+    else:
+        written = write_report(cal, report, image=board_view.image, detection=detection)
+        folder = Path(report)
+        written += [
+            cal.save(folder / "calib.json"),
+            atomic_write(folder / "board.png", png_bytes(board_view.image)),
+            atomic_write(folder / "objects.png", png_bytes(objects_view.image)),
+            atomic_write(
+                folder / "located.png", png_bytes(draw_objects(objects_view.image, located))
+            ),
+        ]
+        say(f"Wrote to {folder}: {', '.join(p.name for p in written)}")
+    out += NEXT_STEPS
     return "\n".join(out)
 
 

@@ -18,20 +18,27 @@ exactly what is computed here, numbers written with 9 decimals (1e-9 mm):
 
 * pages.py: the paper sizes, by name or ``"WxH"`` in mm.
 * layout.py: where the dots, the axis marks, the check bar and the text go; why a board
-  that does not fit does not.
+  that does not fit does not, and the smaller board that would (``smaller_board``: the
+  most dots at the board's pitch).
 * svg.py, pdf.py: the two formats (one SVG user unit is one mm; the PDF scales its content
   to mm with one ``cm`` operator and asks viewers not to scale when printing).
-* write.py: ``write_board`` and the ``PrintLayout`` it returns.
+* write.py: ``write_board`` and the ``PrintLayout`` it returns; ``page_refusal``: whether a
+  board fits a page, and if not, why and what would.
 
 Files are written atomically (``planarcal.files.atomic_write``): the whole file is rendered
 in memory, then appears complete under its name or not at all, an existing target left as it
 was on any failure.
 """
 
-from planarcal.report.printable.layout import CHECK_BAR_MM, CHECK_TICK_MM, pitch_meaning
+from planarcal.report.printable.layout import (
+    CHECK_BAR_MM,
+    CHECK_TICK_MM,
+    pitch_meaning,
+    smaller_board,
+)
 from planarcal.report.printable.pages import PAGE_SIZES, Orientation, page_size
 from planarcal.report.printable.pdf import PT_PER_MM
-from planarcal.report.printable.write import PrintLayout, write_board
+from planarcal.report.printable.write import PrintLayout, page_refusal, write_board
 
 __all__ = [
     "CHECK_BAR_MM",
@@ -40,7 +47,9 @@ __all__ = [
     "PT_PER_MM",
     "Orientation",
     "PrintLayout",
+    "page_refusal",
     "page_size",
     "pitch_meaning",
+    "smaller_board",
     "write_board",
 ]

@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import textwrap
+from collections.abc import Callable
 from typing import Literal
 
 from planarcal.calib.board import CircleGridBoard
@@ -380,9 +381,108 @@ def _smallest_page(board: CircleGridBoard, margin: float, family: str) -> str:
     return "no standard page is large enough"  # pragma: no cover
 
 
+# The finest pitch a smaller board is offered at: dots of 1 mm are hard to print and to see.
+_MIN_PITCH_MM = 2.0
+_PITCH_STEP_MM = 0.5  # smaller boards' pitches are whole multiples of it, for people to type
+
+
+def _most_dots_at_pitch(
+    board: CircleGridBoard, fits: Callable[[CircleGridBoard], bool]
+) -> CircleGridBoard | None:
+    """The board with the most dots, at most ``board.cols`` x ``board.rows`` and at the same
+    pitch, that ``fits``; of equals, the one closest to ``board``'s proportions."""
+    fewest_rows = 3 if board.layout == "asymmetric" else 2
+    # An unmarked asymmetric grid with an odd number of rows fixes its own origin: keep that.
+    step = 2 if board.layout == "asymmetric" and board.rows % 2 and not board.origin_marker else 1
+    row_counts = range(board.rows, fewest_rows - 1, -step)
+    proportions = math.log(board.cols / board.rows)
+    best: CircleGridBoard | None = None
+    best_key = (0, -math.inf)
+    # More columns never allow more rows: walk the staircase of the largest fitting boards,
+    # each candidate tried once.
+    i = 0
+    for cols in range(2, board.cols + 1):
+        while i < len(row_counts) and not fits(
+            dataclasses.replace(board, cols=cols, rows=row_counts[i])
+        ):
+            i += 1
+        if i == len(row_counts):
+            break
+        rows = row_counts[i]
+        key = (cols * rows, -abs(math.log(cols / rows) - proportions))
+        if key > best_key:
+            best, best_key = dataclasses.replace(board, cols=cols, rows=rows), key
+    return best
+
+
+def _all_dots_at_largest_pitch(
+    board: CircleGridBoard, fits: Callable[[CircleGridBoard], bool]
+) -> CircleGridBoard | None:
+    """``board`` with every dot, at the largest pitch (a multiple of 0.5 mm, at least 2 mm)
+    that ``fits``: the dots and the marker scaled with it."""
+
+    def scaled(steps: int) -> CircleGridBoard:
+        ratio = steps * _PITCH_STEP_MM / board.pitch
+        return dataclasses.replace(
+            board,
+            pitch=steps * _PITCH_STEP_MM,
+            diameter=None if board.diameter is None else board.diameter * ratio,
+            marker_diameter=None
+            if board.marker_diameter is None
+            else board.marker_diameter * ratio,
+        )
+
+    low = math.ceil(_MIN_PITCH_MM / _PITCH_STEP_MM)
+    high = math.ceil(board.pitch / _PITCH_STEP_MM) - 1  # strictly finer than the board's
+    if high < low or not fits(scaled(low)):
+        return None
+    while low < high:  # the largest that fits, a finer pitch fitting whenever a coarser one does
+        mid = (low + high + 1) // 2
+        if fits(scaled(mid)):
+            low = mid
+        else:
+            high = mid - 1
+    return scaled(low)
+
+
+def smaller_board(
+    board: CircleGridBoard, size: tuple[float, float], orientation: str, margin: float
+) -> CircleGridBoard | None:
+    """A board like ``board`` that fits a page of ``size`` in ``orientation`` ('auto':
+    either) when ``board`` does not (None when it does, or nothing does): the most dots at
+    its pitch, or, when not even 2 x 2 dots fit at it, all its dots at the largest pitch
+    that fits.
+
+    The pitch is kept first: it keeps the dots as large in the camera's image and the board
+    reaching as far across it, which is what the lens model needs (on the paper's setup a
+    9 x 10 board at 20 mm calibrates its 260 x 180 mm work area about as well as the 14 x 10
+    one; 14 x 10 at 13.5 mm reaches too little of the image for a lens model, and is off by
+    0.24 mm on average)."""
+
+    def fits(candidate: CircleGridBoard) -> bool:
+        return fit(candidate, "", size, orientation, margin) is not None
+
+    if fits(board):
+        return None
+    return _most_dots_at_pitch(board, fits) or _all_dots_at_largest_pitch(board, fits)
+
+
+def in_words(board: CircleGridBoard) -> str:
+    """A smaller board, as a refusal offers it to a caller of ``write_board``."""
+    return f"CircleGridBoard({board.describe()})"
+
+
 def refusal(
-    board: CircleGridBoard, label: str, size: tuple[float, float], orientation: str, margin: float
+    board: CircleGridBoard,
+    label: str,
+    size: tuple[float, float],
+    orientation: str,
+    margin: float,
+    offer: Callable[[CircleGridBoard], str] = in_words,
 ) -> str:
+    """Why ``board`` does not fit the page: its size, the page's room, the smallest page
+    that fits, and the smaller board that fits this page (``smaller_board``), written by
+    ``offer``."""
     ex, ey = board.extent
     tried = ("portrait", "landscape") if orientation == "auto" else (orientation,)
     usable = []
@@ -399,4 +499,8 @@ def refusal(
     if orientation != "auto" and fit(board, label, size, "auto", margin) is not None:
         other = "landscape" if orientation == "portrait" else "portrait"
         return f"{message}; it fits in {other} (orientation='{other}' or 'auto')"
-    return f"{message}; use a larger page: {_smallest_page(board, margin, page_family(label))}"
+    message += f"; use a larger page: {_smallest_page(board, margin, page_family(label))}"
+    smaller = smaller_board(board, size, orientation, margin)
+    if smaller is not None:
+        message += f"; or a smaller board that fits {label}: {offer(smaller)}"
+    return message

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from planarcal.calib.board import CircleGridBoard
 from planarcal.errors import ArgumentError, BoardError
 from planarcal.files import atomic_write
-from planarcal.report.printable.layout import CHECK_BAR_MM, fit, refusal
+from planarcal.report.printable.layout import CHECK_BAR_MM, fit, in_words, refusal
 from planarcal.report.printable.pages import Orientation, num, parse_page
 from planarcal.report.printable.pdf import PT_PER_MM, pdf_bytes
 from planarcal.report.printable.shapes import Box
@@ -98,10 +98,11 @@ def write_board(
 
     Raises BoardError when the board, with its axis marks, check bar and text, does not fit
     inside the margins (in the orientation asked for, or in either for ``"auto"``): the
-    message gives the dot field's extent, the page's usable size, and the smallest standard
-    page that fits, and when the board leaves its dots' diameter unknown (``diameter=None``):
-    a printed dot needs a size. An unwritable path raises OSError naming it; the file is
-    written atomically (see the module's docstring).
+    message gives the dot field's extent, the page's usable size, the smallest standard
+    page that fits and the smaller board that fits this page (``smaller_board``), and when
+    the board leaves its dots' diameter unknown (``diameter=None``): a printed dot needs a
+    size. An unwritable path raises OSError naming it; the file is written atomically (see
+    the module's docstring).
     """
     target = Path(os.fspath(path))
     suffix = target.suffix.lower()
@@ -111,28 +112,7 @@ def write_board(
             f"{target.suffix or '(none)'!r}: use .svg or .pdf"
         )
     fmt: Literal["svg", "pdf"] = "svg" if suffix == ".svg" else "pdf"
-    if orientation not in ("auto", "portrait", "landscape"):
-        raise ArgumentError(
-            f"orientation must be 'auto', 'portrait' or 'landscape', got {orientation!r}"
-        )
-    if isinstance(margin_mm, bool) or not isinstance(margin_mm, int | float | np.number):
-        raise ArgumentError(f"margin_mm must be a length in mm, got {margin_mm!r}")
-    margin = float(margin_mm)
-    if not (math.isfinite(margin) and margin >= 0):
-        raise ArgumentError(f"margin_mm must be a finite length >= 0 in mm, got {margin_mm!r}")
-    if isinstance(page, str):
-        label, size = parse_page(page)
-    else:
-        try:
-            pw, ph = (float(v) for v in page)
-        except (TypeError, ValueError):
-            raise ArgumentError(
-                f"a page is a name like 'A4', a size like '300x400' or (width, height) in mm, "
-                f"got {page!r}"
-            ) from None
-        if not (pw > 0 and ph > 0 and math.isfinite(pw) and math.isfinite(ph)):
-            raise ArgumentError(f"a page must have a positive width and height, got {page!r}")
-        label, size = f"{num(pw)}x{num(ph)}", (pw, ph)
+    label, size, margin = _checked_page(page, orientation, margin_mm)
 
     board.dots_mm()  # BoardError when the dots' size is unknown: it cannot be printed
     drawing = fit(board, label, size, orientation, margin)
@@ -156,3 +136,51 @@ def write_board(
         text_box_mm=drawing.text_box,
         content_box_mm=drawing.content_box,
     )
+
+
+def _checked_page(
+    page: str | Sequence[float], orientation: str, margin_mm: float
+) -> tuple[str, tuple[float, float], float]:
+    """(the page's label, its (width, height) in mm, the margin) of ``write_board``'s page
+    arguments; ArgumentError naming the one that is not valid."""
+    if orientation not in ("auto", "portrait", "landscape"):
+        raise ArgumentError(
+            f"orientation must be 'auto', 'portrait' or 'landscape', got {orientation!r}"
+        )
+    if isinstance(margin_mm, bool) or not isinstance(margin_mm, int | float | np.number):
+        raise ArgumentError(f"margin_mm must be a length in mm, got {margin_mm!r}")
+    margin = float(margin_mm)
+    if not (math.isfinite(margin) and margin >= 0):
+        raise ArgumentError(f"margin_mm must be a finite length >= 0 in mm, got {margin_mm!r}")
+    if isinstance(page, str):
+        label, size = parse_page(page)
+        return label, size, margin
+    try:
+        pw, ph = (float(v) for v in page)
+    except (TypeError, ValueError):
+        raise ArgumentError(
+            f"a page is a name like 'A4', a size like '300x400' or (width, height) in mm, "
+            f"got {page!r}"
+        ) from None
+    if not (pw > 0 and ph > 0 and math.isfinite(pw) and math.isfinite(ph)):
+        raise ArgumentError(f"a page must have a positive width and height, got {page!r}")
+    return f"{num(pw)}x{num(ph)}", (pw, ph), margin
+
+
+def page_refusal(
+    board: CircleGridBoard,
+    page: str | Sequence[float] = "A4",
+    *,
+    orientation: Orientation = "auto",
+    margin_mm: float = 10.0,
+    offer: Callable[[CircleGridBoard], str] = in_words,
+) -> str | None:
+    """None when ``board`` fits the page as ``write_board`` lays it out (same arguments),
+    else the message ``write_board`` would raise, with the smaller board that fits this page
+    (``smaller_board``) written by ``offer``: ``planarcal board`` offers it as a command
+    line."""
+    label, size, margin = _checked_page(page, orientation, margin_mm)
+    board.dots_mm()  # BoardError when the dots' size is unknown: it cannot be laid out
+    if fit(board, label, size, orientation, margin) is not None:
+        return None
+    return refusal(board, label, size, orientation, margin, offer)
