@@ -317,11 +317,21 @@ def test_controller_that_closes_never_reads_or_resets_never_slows_the_loop(
         first, _ = controller.accept()
         first.close()  # hangs up at once
 
-        second, _ = controller.accept()  # never reads: its buffers fill, then lines drop
+        # Never reads (its buffers fill, then lines drop), and talks back: 8 MB that the
+        # writer must read and discard without falling behind.
+        second, _ = controller.accept()
+        second.settimeout(WAIT_S)
+        failed: list[BaseException] = []
+        talking = threading.Thread(
+            target=flood, args=(second, b"STATUS OK\n" * 800_000, failed), daemon=True
+        )
+        talking.start()
         dropped = output.stats.dropped
         assert wait_for(lambda: output.stats.dropped >= dropped + 250), output.describe()
         head = second.recv(1000)
         assert head and b"\n" not in head  # the connection began on a line's first byte
+        talking.join(WAIT_S)
+        assert not talking.is_alive() and not failed, "the writer did not read what came"
         close_socket(second, abort=True)  # RST, half-way through a line
 
         third, _ = controller.accept()  # reads everything
