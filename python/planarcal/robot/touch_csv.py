@@ -20,12 +20,12 @@ import csv
 import dataclasses
 import math
 import os
-import stat
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
+from planarcal.bounded_read import read_regular_file
 from planarcal.errors import ArgumentError
 from planarcal.robot.transform_fit import F64
 
@@ -79,26 +79,12 @@ def read_touch_csv(path: str | os.PathLike[str]) -> TouchPoints:
     """The pairs in the touch-point CSV at ``path``; ArgumentError naming the line for
     anything that cannot be read as one of the column sets, or naming the file if it cannot
     be read at all."""
-    p = Path(path)
-    name = str(p)
+    name = str(Path(path))
+    raw = read_regular_file(path, "touch-point file", MAX_FILE_BYTES, ArgumentError)
     try:
-        # A regular file of a sane size: a FIFO would wait for ever, /dev/zero never end.
-        if not stat.S_ISREG(p.stat().st_mode):
-            raise ArgumentError(f"the touch-point file {name!r} is not a regular file")
-        with p.open("rb") as f:
-            raw = f.read(MAX_FILE_BYTES + 1)
-        if len(raw) > MAX_FILE_BYTES:
-            raise ArgumentError(
-                f"the touch-point file {name!r} is over {MAX_FILE_BYTES // 2**20} MiB: a "
-                "touch-point file holds a few lines"
-            )
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise ArgumentError(f"{name}: not a UTF-8 text file ({e.reason})") from None
-    except FileNotFoundError:
-        raise ArgumentError(f"no touch-point file at {name!r}") from None
-    except OSError as e:
-        raise ArgumentError(f"cannot read the touch-point file {name!r}: {e.strerror}") from None
     rows = [
         (number, line)
         for number, line in enumerate(text.splitlines(), start=1)
