@@ -67,7 +67,9 @@ from planarcal.camera import CameraIntrinsics, plane_pose, points_at_height
 from planarcal.errors import (
     ArgumentError,
     BoardError,
+    CalibrationFileError,
     FrameSizeError,
+    HomographyError,
     IntrinsicsError,
     LensModelError,
 )
@@ -765,21 +767,35 @@ class Calibration:
 
     @classmethod
     def from_dict(cls, data: Any, source: str = "calibration data") -> Calibration:
-        """The calibration saved by to_dict(); CalibrationFileError if it is not one."""
-        c = calibration_file.contents_from_dict(data, source)
-        cal = cls.__new__(cls)
-        cal._init(
-            c.world,
-            c.image,
-            c.fit,
-            c.solver,
-            c.refine,
-            c.board,
-            c.image_size,
-            c.intrinsics,
-            c.world_scale,
-            c.robot_frame,
-        )
+        """The calibration saved by to_dict(); CalibrationFileError if it is not one, or if
+        its homography, lens and points do not reproduce the residuals it records."""
+        try:
+            c = calibration_file.contents_from_dict(data, source)
+            cal = cls.__new__(cls)
+            cal._init(
+                c.world,
+                c.image,
+                c.fit,
+                c.solver,
+                c.refine,
+                c.board,
+                c.image_size,
+                c.intrinsics,
+                c.world_scale,
+                c.robot_frame,
+            )
+            errors_px = cal.reprojection_errors_px
+        except CalibrationFileError:
+            raise
+        except (ArgumentError, HomographyError, IntrinsicsError, LensModelError) as e:
+            # Numbers that pass every check of their own but cannot be used together.
+            raise CalibrationFileError(f"{source}: {e}") from None
+        except (OverflowError, RecursionError) as e:
+            # A dict built in Python, not read from a file (read_file refuses these).
+            raise CalibrationFileError(
+                f"{source}: a number too large or a value nested too deeply ({e})"
+            ) from None
+        calibration_file.check_residuals(errors_px, c.residuals, source)
         return cal
 
     def save(self, path: str | os.PathLike[str]) -> Path:

@@ -10,23 +10,28 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import functools
 import json
 import math
 import os
+import re
+import reprlib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeGuard
 
 import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal._core import RadialLens
+from planarcal.bounded_read import read_regular_file
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.json_number import json_number
 from planarcal.calib.lens_choice import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS
 from planarcal.calib.plane_fit import PlaneFit, plane_at
 from planarcal.camera import CameraIntrinsics
+from planarcal.camera.intrinsics import MAX_IMAGE_SIDE_PX
 from planarcal.errors import (
     ArgumentError,
     BoardError,
@@ -35,9 +40,11 @@ from planarcal.errors import (
     IntrinsicsError,
     LensModelError,
 )
+from planarcal.file_formats import CALIBRATION_FORMAT
 from planarcal.files import atomic_write
-from planarcal.homography import SOLVERS, Solver
+from planarcal.homography import SOLVERS, Solver, error_stats
 from planarcal.robot.registration import RobotFrame
+from planarcal.robot.transform_fit import apply
 
 if TYPE_CHECKING:
     # Only a type here: calibration imports this module to read and write itself.
@@ -45,9 +52,42 @@ if TYPE_CHECKING:
 
 F64 = NDArray[np.float64]
 
-FILE_FORMAT = "planarcal-calibration"
+FILE_FORMAT = CALIBRATION_FORMAT
 FILE_VERSION = 3
 READS_VERSIONS = (1, 2, 3)
+
+MAX_FILE_BYTES = 16 * 2**20
+"""The largest calibration file read: one of the paper's board is 30 kB, one of a 100 x 100
+dot board with its registration about 1 MB; beyond that it is not a calibration."""
+
+MAX_BOARD_DOTS_PER_SIDE = 1000
+"""The most dots a board in a file may have a side: a 1000-dot row is a metre long at a 1 mm
+pitch, and its dots' positions (cols x rows of them) are computed whole."""
+
+MAX_INT_DIGITS = 309
+"""Integers longer than this are beyond a float's range (1.8e308): no field holds one."""
+
+RESIDUAL_TOLERANCE_PX = 1e-6
+RESIDUAL_TOLERANCE_REL = 1e-6
+"""How closely a loaded calibration must reproduce the residuals its file records (see
+check_residuals)."""
+
+ROBOT_TOLERANCE_MM = 1e-6
+"""How closely a registration's stored transform must agree with its refit (see
+_robot_frame): rounding is some 1e-13 mm."""
+
+# A dict or file with these is camera intrinsics (OpenCV's, ROS's, or CameraIntrinsics'
+# to_dict), not a calibration: the message says where it belongs.
+INTRINSICS_KEYS = ("camera_matrix", "cameraMatrix", "K")
+INTRINSICS_HINT = (
+    "looks like camera intrinsics ({kind}), not a planarcal calibration: pass it with "
+    "--intrinsics (CameraIntrinsics.load_yaml); a calibration is the JSON file `planarcal "
+    "calibrate` writes"
+)
+_INTRINSICS_NODE = re.compile(
+    r"^\s*(?:camera_matrix|cameraMatrix|K)\s*:|<(?:camera_matrix|cameraMatrix|K)[\s>]", re.M
+)
+_YAML_KEY = re.compile(r"^[A-Za-z_][\w-]*\s*:(?:\s|$)", re.M)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,7 +103,20 @@ class FileContents:
     image_size: tuple[int, int] | None
     intrinsics: CameraIntrinsics | None
     world_scale: tuple[float, float]
+    residuals: StoredResiduals
     robot_frame: RobotFrame | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class StoredResiduals:
+    """The reprojection errors a file says its homography leaves at its points (its
+    summary's mean, RMS, max and min, px): what check_residuals holds the loaded
+    calibration to."""
+
+    mean_px: float
+    rms_px: float
+    max_px: float
+    min_px: float
 
 
 def calibration_to_dict(cal: Calibration) -> dict[str, Any]:
@@ -96,62 +149,53 @@ def calibration_to_dict(cal: Calibration) -> dict[str, Any]:
 
 def contents_from_dict(data: Any, source: str) -> FileContents:
     """The calibration a file's parsed JSON holds; CalibrationFileError if it is not one
-    (`source` names it in the messages)."""
+    (`source` names it in the messages). Every field is checked for its JSON type (a number
+    is an int or a float, never a bool or a string), its shape and its range before use."""
     if not isinstance(data, dict):
-        raise CalibrationFileError(f"{source} is not a calibration (not a JSON object)")
-    if data.get("format") != FILE_FORMAT:
         raise CalibrationFileError(
-            f"{source} is not a planarcal calibration (format {data.get('format')!r})"
+            f"{source} is not a calibration (not a JSON object but {_json_type(data)})"
         )
-    version = data.get("version")
-    if version not in READS_VERSIONS or isinstance(version, bool):
-        raise CalibrationFileError(
-            f"{source} is calibration file version {version!r}; this planarcal "
-            f"({_core.__version__}) reads versions "
-            f"{', '.join(str(v) for v in READS_VERSIONS)}"
-        )
-    try:
-        h = np.array(data["homography_world_mm_to_image_px"], dtype=np.float64)
-        world = np.array(data["points"]["world_mm"], dtype=np.float64)
-        image = np.array(data["points"]["image_px"], dtype=np.float64)
-        solver = data["solver"]
-        refine = data["refine"]
-        size = data.get("image_size_px")
-        board_data = data.get("board")
-    except (KeyError, TypeError, ValueError) as e:
-        raise CalibrationFileError(f"{source} is missing or mangles a field: {e!r}") from None
-    if h.shape != (3, 3) or not np.isfinite(h).all():
-        raise CalibrationFileError(f"{source}: the homography is not a finite 3 x 3 matrix")
-    if abs(np.linalg.det(h)) == 0:
-        raise CalibrationFileError(f"{source}: the homography is singular")
-    for name, pts in (("world_mm", world), ("image_px", image)):
-        if pts.ndim != 2 or pts.shape[1:] != (2,) or not np.isfinite(pts).all():
-            raise CalibrationFileError(f"{source}: points.{name} is not a list of (x, y)")
+    _check_format(data, source)
+    h_data = _field(data, "homography_world_mm_to_image_px", source)
+    h = _reals(h_data, (3, 3), source, "the homography is not a finite 3 x 3 matrix")
+    points = _field(data, "points", source)
+    if not isinstance(points, dict):
+        raise CalibrationFileError(f"{source}: points must be a JSON object, got {_show(points)}")
+    world, image = (
+        _reals(_field(points, key, source, "points."), (None, 2), source, f"points.{key}")
+        for key in ("world_mm", "image_px")
+    )
     if len(world) != len(image) or len(world) < 4:
         raise CalibrationFileError(
             f"{source}: {len(world)} world and {len(image)} image points (need 4 or more, "
             "as many of each)"
         )
-    if solver not in SOLVERS or not isinstance(refine, bool):
-        raise CalibrationFileError(f"{source}: unknown solver {solver!r} / refine {refine!r}")
-    try:
-        board = None if board_data is None else CircleGridBoard.from_dict(board_data)
-    except BoardError as e:
-        raise CalibrationFileError(f"{source}: {e}") from None
-    if size is not None and (
-        not isinstance(size, list) or len(size) != 2 or not all(isinstance(v, int) for v in size)
-    ):
-        raise CalibrationFileError(f"{source}: image_size_px must be [width, height]")
-    image_size = None if size is None else (size[0], size[1])
+    if abs(np.linalg.det(h)) == 0:
+        raise CalibrationFileError(f"{source}: the homography is singular")
+    solver = _field(data, "solver", source)
+    if not isinstance(solver, str) or solver not in SOLVERS:
+        raise CalibrationFileError(
+            f"{source}: unknown solver {_show(solver)} (one of {', '.join(SOLVERS)})"
+        )
+    refine = _field(data, "refine", source)
+    if not isinstance(refine, bool):
+        raise CalibrationFileError(f"{source}: refine must be true or false, got {_show(refine)}")
+    image_size = _image_size(data.get("image_size_px"), source)
+    board = _board(data.get("board"), len(world), source)
     fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
-    robot_data = data.get("robot_frame")
-    robot_frame = (
-        None
-        if robot_data is None
-        else RobotFrame.from_dict(robot_data, f"{source}: its registration to the robot")
-    )
+    robot_frame = _robot_frame(data.get("robot_frame"), source)
     return FileContents(
-        world, image, fit, solver, refine, board, image_size, intrinsics, world_scale, robot_frame
+        world,
+        image,
+        fit,
+        solver,
+        refine,
+        board,
+        image_size,
+        intrinsics,
+        world_scale,
+        _stored_residuals(data, len(world), source),
+        robot_frame,
     )
 
 
@@ -162,22 +206,298 @@ def write_file(path: str | os.PathLike[str], data: dict[str, Any]) -> Path:
 
 
 def read_file(path: str | os.PathLike[str]) -> Any:
-    """The parsed JSON of the file at `path`; CalibrationFileError if it cannot be read or is not
-    JSON."""
-    p = Path(path)
+    """The parsed JSON of the file at `path`; CalibrationFileError if it cannot be read, is
+    not JSON (saying what it looks like instead: camera intrinsics, another YAML or XML
+    file), or holds what no calibration can (NaN, numbers beyond a float, nesting too deep)."""
+    name = str(Path(path))
+    raw = read_regular_file(path, "calibration file", MAX_FILE_BYTES, CalibrationFileError)
     try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CalibrationFileError(f"no calibration file at {str(p)!r}") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise CalibrationFileError(f"cannot read {str(p)!r}: {e}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as e:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
         raise CalibrationFileError(
-            f"{str(p)!r} is not valid JSON (corrupt or truncated?): {e}"
+            f"{name!r} is not valid JSON (corrupt, or not a calibration?): it is not UTF-8 text"
         ) from None
-    return data
+    foreign = _foreign_text(text)
+    if foreign is not None:
+        raise CalibrationFileError(f"{name!r} {foreign}")
+    try:
+        return json.loads(
+            text,
+            parse_constant=functools.partial(_refuse_constant, name),
+            parse_int=functools.partial(_bounded_int, name),
+        )
+    except CalibrationFileError:
+        raise
+    except json.JSONDecodeError as e:
+        what = "the file is empty" if not text.strip() else str(e)
+        raise CalibrationFileError(
+            f"{name!r} is not valid JSON (corrupt or truncated?): {what}"
+        ) from None
+    except RecursionError:
+        raise CalibrationFileError(
+            f"{name!r} is not a calibration: its JSON is nested too deeply to read"
+        ) from None
+
+
+def check_residuals(errors_px: F64, stored: StoredResiduals, source: str) -> None:
+    """CalibrationFileError unless the loaded calibration's reprojection errors (each point's,
+    px, lens included) are those its file states: a homography, lens and points that do not
+    belong together (points moved, a matrix edited) would otherwise load as a valid
+    calibration and map wrongly.
+
+    The file's figures were computed from these very numbers, which JSON keeps exactly
+    (17 significant digits), by the same arithmetic: a faithful file reproduces them to
+    rounding, about 1e-12 px. RESIDUAL_TOLERANCE_PX plus RESIDUAL_TOLERANCE_REL of the stored
+    figure leaves a margin for another platform's summation order or the lens model's
+    iterations, and is still far below any edit that changes a mapping (a thousandth of a
+    pixel)."""
+    stats = error_stats(errors_px)
+    for name, got, want in (
+        ("mean", stats.mean, stored.mean_px),
+        ("RMS", stats.rms, stored.rms_px),
+        ("max", stats.max, stored.max_px),
+        ("min", stats.min, stored.min_px),
+    ):
+        if not abs(got - want) <= RESIDUAL_TOLERANCE_PX + RESIDUAL_TOLERANCE_REL * want:
+            worst = int(np.argmax(errors_px))
+            raise CalibrationFileError(
+                f"{source}: its homography, lens and points do not belong together: they "
+                f"leave a {name} reprojection error of {got:.6g} px where its summary records "
+                f"{want:.6g} px (summary.{name.lower()}_px), the worst at point {worst} "
+                f"({errors_px[worst]:.6g} px); the file was edited or is corrupt"
+            )
+
+
+# -- what a file holds, checked field by field ---------------------------------------------
+
+
+def _check_format(data: dict[str, Any], source: str) -> None:
+    """CalibrationFileError unless `data` says it is a calibration of a version read here;
+    a dict of camera intrinsics, or of no known format, is named as such."""
+    if "format" not in data:
+        if any(k in data for k in INTRINSICS_KEYS):
+            raise CalibrationFileError(f"{source} {INTRINSICS_HINT.format(kind='JSON')}")
+        raise CalibrationFileError(
+            f'{source} is a JSON file but not a planarcal calibration (no "format" field); '
+            "make one with `planarcal calibrate`"
+        )
+    file_format = data["format"]
+    if file_format != FILE_FORMAT:
+        raise CalibrationFileError(
+            f"{source} is a JSON file but not a planarcal calibration (its format is "
+            f"{_show(file_format)}, not {FILE_FORMAT!r}); make one with `planarcal calibrate`"
+        )
+    version = data.get("version")
+    if isinstance(version, bool) or version not in READS_VERSIONS:
+        raise CalibrationFileError(
+            f"{source} is calibration file version {_show(version)}; this planarcal "
+            f"({_core.__version__}) reads versions "
+            f"{', '.join(str(v) for v in READS_VERSIONS)}"
+        )
+
+
+def _field(data: dict[str, Any], key: str, source: str, prefix: str = "") -> Any:
+    if key not in data:
+        raise CalibrationFileError(f"{source} is missing the field {prefix}{key}")
+    return data[key]
+
+
+def _image_size(size: Any, source: str) -> tuple[int, int] | None:
+    """image_size_px: null, or [width, height] in whole pixels up to MAX_IMAGE_SIDE_PX."""
+    if size is None:
+        return None
+    if (
+        not isinstance(size, list | tuple)
+        or len(size) != 2
+        or not all(_is_int(v) and 1 <= v <= MAX_IMAGE_SIDE_PX for v in size)
+    ):
+        raise CalibrationFileError(
+            f"{source}: image_size_px must be [width, height], two whole numbers of pixels "
+            f"from 1 to {MAX_IMAGE_SIDE_PX}, got {_show(size)}"
+        )
+    return int(size[0]), int(size[1])
+
+
+def _board(board_data: Any, n_points: int, source: str) -> CircleGridBoard | None:
+    """The board, or None; its fields' JSON types checked (CircleGridBoard checks the rest),
+    at most MAX_BOARD_DOTS_PER_SIDE a side and with at least the file's points."""
+    if board_data is None:
+        return None
+    if not isinstance(board_data, dict):
+        raise CalibrationFileError(f"{source}: board must be a JSON object or null")
+    for key in ("cols", "rows"):
+        value = board_data.get(key)
+        if not (_is_int(value) and 2 <= value <= MAX_BOARD_DOTS_PER_SIDE):
+            raise CalibrationFileError(
+                f"{source}: board.{key} must be a whole number of dots from 2 to "
+                f"{MAX_BOARD_DOTS_PER_SIDE}, got {_show(value)}"
+            )
+    for key in ("pitch_mm", "diameter_mm", "marker_diameter_mm"):
+        value = board_data.get(key)
+        if not (_is_real(value) or (value is None and key != "pitch_mm")):
+            raise CalibrationFileError(
+                f"{source}: board.{key} must be a number of mm, got {_show(value)}"
+            )
+    if not isinstance(board_data.get("origin_marker", False), bool):
+        raise CalibrationFileError(f"{source}: board.origin_marker must be true or false")
+    if not isinstance(board_data.get("layout", "symmetric"), str):
+        raise CalibrationFileError(f"{source}: board.layout must be a string")
+    try:
+        board = CircleGridBoard.from_dict(board_data)
+    except BoardError as e:
+        raise CalibrationFileError(f"{source}: board: {e}") from None
+    if board.n_points < n_points:
+        raise CalibrationFileError(
+            f"{source}: the board has {board.n_points} dots ({board.cols} x {board.rows}) "
+            f"but the file {n_points} points"
+        )
+    return board
+
+
+def _robot_frame(robot_data: Any, source: str) -> RobotFrame | None:
+    """The registration to the robot, or None: refitted from its pairs by RobotFrame.from_dict,
+    whose check of the stored transform lets each entry differ by 1e-6 of the largest (with a
+    250 mm translation, 2.5e-4 in the rotation's entries: 0.075 mm 300 mm from the origin).
+    Here the stored transform must put the pairs' board points where the refitted one does to
+    ROBOT_TOLERANCE_MM: a pair edited by a fraction of a millimetre would otherwise move every
+    robot position silently."""
+    if robot_data is None:
+        return None
+    where = f"{source}: its registration to the robot"
+    frame = RobotFrame.from_dict(robot_data, where)
+    stored = np.asarray(robot_data["plane_to_robot"], dtype=np.float64)  # checked 3 x 3
+    drift = float(np.abs(apply(stored, frame.plane_mm) - frame.to_robot(frame.plane_mm)).max())
+    if not drift <= ROBOT_TOLERANCE_MM:
+        raise CalibrationFileError(
+            f"{where}: its stored transform puts its board points up to {drift:.3g} mm from "
+            "where its point pairs put them (edited or corrupt)"
+        )
+    return frame
+
+
+def _stored_residuals(data: dict[str, Any], n_points: int, source: str) -> StoredResiduals:
+    """The summary's reprojection errors, which check_residuals compares with the loaded
+    calibration's own."""
+    summary = data.get("summary")
+    if not isinstance(summary, dict):
+        raise CalibrationFileError(
+            f"{source} has no summary (its reprojection errors, which a loaded calibration "
+            "is checked against)"
+        )
+    if summary.get("n_points") != n_points or not _is_int(summary.get("n_points")):
+        raise CalibrationFileError(
+            f"{source}: summary.n_points is {_show(summary.get('n_points'))} but the file "
+            f"holds {n_points} points"
+        )
+    values = []
+    for key in ("mean_px", "rms_px", "max_px", "min_px"):
+        value = summary.get(key)
+        if not (_is_real(value) and value >= 0):
+            raise CalibrationFileError(
+                f"{source}: summary.{key} must be a reprojection error in px (a number >= 0), "
+                f"got {_show(value)}"
+            )
+        values.append(float(value))
+    return StoredResiduals(*values)
+
+
+def _reals(value: Any, shape: tuple[int | None, ...], where: str, what: str) -> F64:
+    """Nested JSON lists of finite numbers of `shape` (None: any length) as a float64 array;
+    otherwise CalibrationFileError "`where`: `what`: " and the entry at fault. Only the
+    expected depth is walked, so no nesting can make it recurse further."""
+    rows = len(value) if isinstance(value, list | tuple) else 0
+    out = np.empty([rows if n is None else n for n in shape])
+
+    def fill(item: Any, level: int, index: tuple[int, ...]) -> None:
+        at = "".join(f"[{i}]" for i in index) or "it"
+        if level == len(shape):
+            if not _is_real(item):
+                raise CalibrationFileError(
+                    f"{where}: {what}: {at} is {_show(item)}, not a finite number"
+                )
+            out[index] = float(item)
+            return
+        if not isinstance(item, list | tuple) or len(item) != out.shape[level]:
+            length = "" if not isinstance(item, list | tuple) else f" of {len(item)}"
+            raise CalibrationFileError(
+                f"{where}: {what}: {at} is {_show(item) if not length else 'a list' + length}, "
+                f"not a list of {out.shape[level]}"
+            )
+        for i, sub in enumerate(item):
+            fill(sub, level + 1, (*index, i))
+
+    fill(value, 0, ())
+    return out
+
+
+def _is_int(value: Any) -> TypeGuard[int]:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_real(value: Any) -> TypeGuard[int | float]:
+    """A JSON number (int or float, never a bool) that is a finite float."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
+def _json_type(value: Any) -> str:
+    return {list: "a list", str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(value), "a number"
+    )
+
+
+_SHOW = reprlib.Repr()
+_SHOW.maxstring = _SHOW.maxother = 40
+_SHOW.maxlong = 24
+
+
+def _show(value: Any) -> str:
+    """`value` for a message as JSON writes it where that differs (true, null), cut short
+    (a field may hold a whole file's worth, or be nested deep)."""
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    return _SHOW.repr(value)
+
+
+def _refuse_constant(name: str, constant: str) -> Any:
+    raise CalibrationFileError(
+        f"{name!r} holds {constant}, which is not a JSON number: a calibration file has only "
+        "finite numbers (edited, or written by another tool?)"
+    )
+
+
+def _bounded_int(name: str, digits: str) -> int:
+    # Beyond a float's range no field can use it; refusing here keeps int() and float() from
+    # failing later (Python refuses ints of over 4300 digits, floats overflow at 1e308).
+    if len(digits.lstrip("-")) > MAX_INT_DIGITS:
+        raise CalibrationFileError(
+            f"{name!r} holds an integer of {len(digits.lstrip('-'))} digits: beyond any "
+            "number a calibration file holds (corrupt or edited?)"
+        )
+    return int(digits)
+
+
+def _foreign_text(text: str) -> str | None:
+    """What a file that is not JSON looks like, said to the user (None if it may be JSON):
+    an OpenCV or ROS intrinsics file (YAML or XML), or some other YAML or XML."""
+    head = text.lstrip("\ufeff \t\r\n")[:4096]
+    if head.startswith(("{", "[")) or not head:
+        return None
+    if head.startswith("<"):
+        kind = "XML"
+    elif head.startswith(("%YAML", "---")) or _YAML_KEY.search(head):
+        kind = "YAML"
+    else:
+        return None
+    if _INTRINSICS_NODE.search(text[:65536]):
+        return INTRINSICS_HINT.format(kind=f"OpenCV {kind}")
+    return (
+        f"is a {kind} file, not a planarcal calibration (a JSON file made by `planarcal calibrate`)"
+    )
 
 
 def _fit_from_dict(
@@ -188,52 +508,96 @@ def _fit_from_dict(
     size: tuple[int, int] | None,
     source: str,
 ) -> tuple[PlaneFit, CameraIntrinsics | None, tuple[float, float]]:
-    """The fit a file describes, checked against its points; CalibrationFileError if not."""
+    """The fit a file describes, checked against its points; CalibrationFileError if not.
+    Version 1 files have none of these fields: no lens, the nominal world scale."""
     lens = data.get("lens_model", "none")
-    lens_data = data.get("lens")
-    intr_data = data.get("intrinsics")
-    scale = data.get("world_scale", [1.0, 1.0])
     note = data.get("lens_note", "no lens model")
-    cand_data = data.get("lens_candidates", [])
-    try:
-        world_scale = (float(scale[0]), float(scale[1]))
-        if len(scale) != 2 or not all(math.isfinite(v) and v > 0 for v in world_scale):
-            raise ValueError(scale)
-        candidates = [
-            LensCandidate(
-                str(c["model"]),
-                math.nan if c["loo_mean_px"] is None else float(c["loo_mean_px"]),
-                math.nan if c["sigma_px"] is None else float(c["sigma_px"]),
-                str(c["verdict"]),
-            )
-            for c in cand_data
-        ]
-    except (KeyError, TypeError, ValueError, IndexError) as e:
-        raise CalibrationFileError(f"{source}: bad world_scale or lens_candidates: {e!r}") from None
+    if not isinstance(lens, str) or lens not in (*LENS_MODELS, "intrinsics"):
+        raise CalibrationFileError(
+            f"{source}: unknown lens model {_show(lens)} (one of "
+            f"{', '.join(LENS_MODELS)}, intrinsics)"
+        )
+    if not isinstance(note, str):
+        raise CalibrationFileError(f"{source}: lens_note must be a string, got {_show(note)}")
+    scale = data.get("world_scale", [1.0, 1.0])
+    world_scale_array = _reals(scale, (2,), source, "world_scale must be two factors")
+    if not (world_scale_array > 0).all():
+        raise CalibrationFileError(
+            f"{source}: world_scale must be two factors > 0, got {_show(scale)}"
+        )
+    world_scale = (float(world_scale_array[0]), float(world_scale_array[1]))
+    candidates = _lens_candidates(data.get("lens_candidates", []), source)
     intrinsics = None
     radial = None  # a lens model's own
-    try:
-        if lens == "intrinsics":
-            intrinsics = CameraIntrinsics.from_dict(intr_data)
-        elif lens in LENS_MODELS[1:]:
-            if size is None or not isinstance(lens_data, dict):
-                raise CalibrationFileError(
-                    f"{source}: lens model {lens!r} without its parameters or the image size"
-                )
-            cx, cy = (float(v) for v in lens_data["centre_px"])
-            radial = RadialLens(
-                (cx, cy),
-                float(lens_data["scale_px"]),
-                float(lens_data["k1"]),
-                float(lens_data["k2"]),
+    if lens == "intrinsics":
+        try:
+            intrinsics = CameraIntrinsics.from_dict(data.get("intrinsics"))
+        except IntrinsicsError as e:
+            raise CalibrationFileError(f"{source}: intrinsics: {e}") from None
+        if size is not None and size != intrinsics.image_size:
+            raise CalibrationFileError(
+                f"{source}: image_size_px {list(size)} is not the intrinsics' "
+                f"{list(intrinsics.image_size)}"
             )
-        elif lens != "none":
-            raise CalibrationFileError(f"{source}: unknown lens model {lens!r}")
-        plane = plane_at(h, world, image, size, str(lens), radial, intrinsics)
+    elif lens != "none":
+        radial = _radial_lens(data.get("lens"), lens, size, source)
+    try:
+        plane = plane_at(h, world, image, size, lens, radial, intrinsics)
     except (ArgumentError, IntrinsicsError, LensModelError, HomographyError) as e:
         raise CalibrationFileError(f"{source}: {e}") from None
-    except (KeyError, TypeError, ValueError) as e:
+    return PlaneFit(plane, h, lens, candidates, note), intrinsics, world_scale
+
+
+def _radial_lens(lens_data: Any, lens: str, size: tuple[int, int] | None, source: str) -> Any:
+    """The RadialLens of lens model `lens` from the file's ``lens`` object."""
+    if size is None or not isinstance(lens_data, dict):
         raise CalibrationFileError(
-            f"{source}: the lens is missing or mangles a field: {e!r}"
-        ) from None
-    return PlaneFit(plane, h, str(lens), candidates, str(note)), intrinsics, world_scale
+            f"{source}: lens model {lens!r} without its parameters (lens) or the image size "
+            "(image_size_px)"
+        )
+    if lens_data.get("model", lens) != lens:
+        raise CalibrationFileError(
+            f"{source}: lens.model {_show(lens_data.get('model'))} is not lens_model {lens!r}"
+        )
+    centre_data = _field(lens_data, "centre_px", source, "lens.")
+    centre = _reals(centre_data, (2,), source, "lens.centre_px must be [x, y]")
+    values = {}
+    for key in ("scale_px", "k1", "k2"):
+        value = _field(lens_data, key, source, "lens.")
+        if not _is_real(value):
+            raise CalibrationFileError(
+                f"{source}: lens.{key} must be a finite number, got {_show(value)}"
+            )
+        values[key] = float(value)
+    if not values["scale_px"] > 0:
+        raise CalibrationFileError(f"{source}: lens.scale_px must be > 0, got {values['scale_px']}")
+    try:
+        return RadialLens(
+            (float(centre[0]), float(centre[1])), values["scale_px"], values["k1"], values["k2"]
+        )
+    except (ArgumentError, LensModelError) as e:
+        raise CalibrationFileError(f"{source}: lens: {e}") from None
+
+
+def _lens_candidates(cand_data: Any, source: str) -> list[LensCandidate]:
+    """The lens models tried (for the report): model, errors (null where not fitted)."""
+    if not isinstance(cand_data, list):
+        raise CalibrationFileError(f"{source}: lens_candidates must be a list")
+    candidates = []
+    for i, c in enumerate(cand_data):
+        where = f"{source}: lens_candidates[{i}]"
+        if not isinstance(c, dict):
+            raise CalibrationFileError(f"{where} must be a JSON object, got {_show(c)}")
+        model, verdict = c.get("model"), c.get("verdict")
+        if not (isinstance(model, str) and isinstance(verdict, str)):
+            raise CalibrationFileError(f"{where}: model and verdict must be strings")
+        errors = []
+        for key in ("loo_mean_px", "sigma_px"):
+            value = c.get(key)
+            if not (value is None or _is_real(value)):
+                raise CalibrationFileError(
+                    f"{where}.{key} must be a number or null, got {_show(value)}"
+                )
+            errors.append(math.nan if value is None else float(value))
+        candidates.append(LensCandidate(model, errors[0], errors[1], verdict))
+    return candidates

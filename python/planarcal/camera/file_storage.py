@@ -9,7 +9,9 @@ call :func:`write_intrinsics` and :func:`read_intrinsics`.
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
+import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -18,8 +20,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal.bounded_read import read_regular_file
 from planarcal.camera.opencv_errors import last_line
 from planarcal.errors import IntrinsicsError
+from planarcal.file_formats import CALIBRATION_FORMAT
 from planarcal.files import atomic_write
 
 if TYPE_CHECKING:
@@ -37,6 +41,37 @@ _SIZE_NODES = ("image_size", "imageSize")
 _RMS_NODES = ("avg_reprojection_error", "rms", "reprojection_error")
 _VIEWS_NODES = ("nr_of_frames", "nframes", "n_views")
 _PER_VIEW_NODES = ("per_view_reprojection_errors",)
+_READ_NODES = frozenset(
+    (
+        *_MATRIX_NODES,
+        *_DIST_NODES,
+        *_WIDTH_NODES,
+        *_HEIGHT_NODES,
+        *_SIZE_NODES,
+        *_RMS_NODES,
+        *_VIEWS_NODES,
+        *_PER_VIEW_NODES,
+    )
+)
+# The keys of a matrix written as a map (OpenCV's !!opencv-matrix, ROS's rows/cols/data).
+_MATRIX_FIELDS = frozenset(("rows", "cols", "data", "dt"))
+
+# The lens models a file may name: OpenCV's own (k1, k2, p1, p2[, k3[, k4, k5, k6]]) under
+# ROS's names for it (camera_info's distortion_model), with the coefficient counts each has.
+SUPPORTED_MODELS = {"plumb_bob": (4, 5), "rational_polynomial": (8,)}
+_MODEL_NODES = ("distortion_model", "distortionModel")
+# OpenCV's calibration sample writes fisheye_model: 1 for cv2.fisheye's model.
+_FISHEYE_NODES = ("fisheye_model", "use_fisheye_model")
+
+MAX_FILE_BYTES = 4 * 2**20
+"""The largest intrinsics file read: OpenCV's calibration sample writes some 100 kB even
+with every view's board points; beyond this it is not a calibration."""
+
+# OpenCV saturates an integer too long for 64 bits to 2**63 - 1 (which reads back as 2**63).
+_INT64_LIMIT = 2.0**63
+
+_YAML_LINE = re.compile(r"^\s*(?:-\s+)?(?P<key>[A-Za-z_][\w-]*)\s*:(?P<value>.*)$")
+_YAML_BOOLEANS = frozenset(("true", "false", "True", "False", "TRUE", "FALSE"))
 
 # A node found, with the name it was found under (for messages).
 _Found = tuple[str, Any]
@@ -82,12 +117,7 @@ def read_intrinsics(path: str | os.PathLike[str], make: Callable[..., T]) -> T:
     and per_view_rms_px. IntrinsicsError naming the file and the fault, including those
     ``make`` raises."""
     p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except FileNotFoundError:
-        raise IntrinsicsError(f"no intrinsics file at {str(p)!r}") from None
-    except OSError as e:
-        raise IntrinsicsError(f"cannot read {str(p)!r}: {e.strerror or e}") from None
+    raw = read_regular_file(p, "intrinsics file", MAX_FILE_BYTES, IntrinsicsError)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -98,6 +128,7 @@ def read_intrinsics(path: str | os.PathLike[str], make: Callable[..., T]) -> T:
         raise IntrinsicsError(f"{str(p)!r} is empty")
     if "\x00" in text:
         raise IntrinsicsError(f"{str(p)!r} is not an OpenCV YAML/XML file: it has NUL bytes")
+    _check_text(text, repr(str(p)))
     try:
         fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
         opened = fs.isOpened()
@@ -116,11 +147,64 @@ def read_intrinsics(path: str | os.PathLike[str], make: Callable[..., T]) -> T:
     return _from_file_storage(root, repr(str(p)), make)
 
 
+def _check_text(text: str, source: str) -> None:
+    """IntrinsicsError for what OpenCV's parser would misread rather than refuse: a
+    planarcal calibration (JSON) given for intrinsics, and booleans where numbers belong
+    (OpenCV reads YAML's and JSON's true as the number 1)."""
+    if text.lstrip("\ufeff \t\r\n").startswith(("{", "[")):
+        try:
+            data = json.loads(text)
+        except RecursionError:
+            raise IntrinsicsError(f"{source} is nested too deeply to be intrinsics") from None
+        except ValueError:
+            return  # not JSON as Python reads it; OpenCV's parser says what it makes of it
+        if isinstance(data, dict) and data.get("format") == CALIBRATION_FORMAT:
+            raise IntrinsicsError(
+                f"{source} is a planarcal calibration (from `planarcal calibrate`), not camera "
+                "intrinsics: pass it with --calibration (Calibration.load)"
+            )
+        if isinstance(data, dict):
+            for node in _READ_NODES:
+                if _holds_bool(data.get(node)):
+                    raise IntrinsicsError(
+                        f"{source}: {node} holds true or false where numbers belong"
+                    )
+        return
+    if text.lstrip().startswith("<"):
+        return  # OpenCV's XML reads true as text, which the node checks refuse
+    for number, line in enumerate(text.splitlines(), start=1):
+        match = _YAML_LINE.match(line)
+        key: str | None = match["key"] if match else None
+        value: str = match["value"] if match else line
+        if key is not None and key not in _READ_NODES and key not in _MATRIX_FIELDS:
+            continue  # a node not read (a camera's name, a flag): its value is its own
+        pieces = (piece.strip() for piece in re.split(r"[\[\],]|^\s*-\s", value.split("#")[0]))
+        if any(piece in _YAML_BOOLEANS for piece in pieces):
+            raise IntrinsicsError(
+                f"{source} line {number}: {key or 'a list'} holds true or false where a "
+                "number belongs (OpenCV would read it as 1 or 0)"
+            )
+
+
+def _holds_bool(value: Any, depth: int = 0) -> bool:
+    """Whether a JSON value holds a bool within the depth of a matrix map's data."""
+    if isinstance(value, bool):
+        return True
+    if depth > 3:
+        return False
+    if isinstance(value, list):
+        return any(_holds_bool(v, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return any(_holds_bool(v, depth + 1) for v in value.values())
+    return False
+
+
 def _from_file_storage(root: Any, source: str, make: Callable[..., T]) -> T:
     nodes = _required_nodes(root, source)
     try:
         matrix = _node_matrix(nodes.matrix[1], _what(source, nodes.matrix))
         dist = _node_matrix(nodes.dist[1], _what(source, nodes.dist))
+        _check_lens_model(root, dist.size, source)
         size = _image_size(nodes, source)
         rms, n_views, per_view = _calibration_record(root, source)
         return make(
@@ -194,6 +278,39 @@ def _image_size(nodes: _RequiredNodes, source: str) -> tuple[int, int]:
     return int(width), int(height)
 
 
+def _check_lens_model(root: Any, n_coeffs: int, source: str) -> None:
+    """IntrinsicsError if the file names a lens model other than OpenCV's standard one (a
+    ROS camera_info's equidistant, OpenCV's fisheye_model: 1): its coefficients mean
+    something else, and read as OpenCV's they would map every pixel wrongly."""
+    supported = " or ".join(SUPPORTED_MODELS)
+    if (found := _find(root, _FISHEYE_NODES)) is not None:
+        flag = _node_number(found[1], _what(source, found))
+        if flag != 0:
+            raise IntrinsicsError(
+                f"{source}: {found[0]} is {flag:g}: the fisheye lens model (cv2.fisheye) is not "
+                f"supported; planarcal uses OpenCV's standard model ({supported}): calibrate "
+                "the camera with `planarcal intrinsics`"
+            )
+    if (found := _find(root, _MODEL_NODES)) is None:
+        return
+    node = found[1]
+    model: str | None = node.string() if node.isString() else None
+    if model not in SUPPORTED_MODELS:
+        what = repr(model) if model is not None else "not a name"
+        fisheye = " (the fisheye model)" if model in ("equidistant", "fisheye") else ""
+        raise IntrinsicsError(
+            f"{source}: {found[0]} {what}{fisheye} is not supported: planarcal uses OpenCV's "
+            f"standard lens model, {supported}; calibrate the camera with `planarcal "
+            "intrinsics`"
+        )
+    if n_coeffs not in SUPPORTED_MODELS[model]:
+        raise IntrinsicsError(
+            f"{source}: {found[0]} {model!r} has "
+            f"{' or '.join(map(str, SUPPORTED_MODELS[model]))} distortion coefficients, the "
+            f"file {n_coeffs}"
+        )
+
+
 def _calibration_record(
     root: Any, source: str
 ) -> tuple[float | None, int | None, tuple[float, ...] | None]:
@@ -234,21 +351,30 @@ def _find(root: Any, names: Sequence[str]) -> _Found | None:
 
 def _node_number(node: Any, what: str) -> float:
     if not (node.isInt() or node.isReal()):
-        raise IntrinsicsError(f"{what} is not a number")
-    return float(node.real())
+        text = f" (it is the text {node.string()[:40]!r})" if node.isString() else ""
+        raise IntrinsicsError(f"{what} is not a number{text}")
+    value = float(node.real())
+    if node.isInt() and abs(value) >= _INT64_LIMIT:
+        raise IntrinsicsError(f"{what} is an integer too large to read (beyond 64 bits)")
+    if not np.isfinite(value):
+        raise IntrinsicsError(f"{what} is {value}, not a finite number")
+    return value
 
 
-def _node_matrix(node: Any, what: str) -> F64:
+def _node_matrix(node: Any, what: str, depth: int = 0) -> F64:
     """A matrix node as float64: an ``!!opencv-matrix``, a map with rows, cols and data
-    (ROS's camera_info YAML), or a (nested) sequence of numbers."""
+    (ROS's camera_info YAML), or a (nested) sequence of numbers. At most a map of rows of
+    numbers deep: anything nested deeper is no matrix (and could exhaust the stack)."""
+    if depth > 2:
+        raise IntrinsicsError(f"{what} is nested too deeply for a matrix")
     if node.isMap():
-        return _map_matrix(node, what)
+        return _map_matrix(node, what, depth + 1)
     if node.isSeq():
-        return _sequence_matrix(node, what)
+        return _sequence_matrix(node, what, depth + 1)
     raise IntrinsicsError(f"{what} is not a matrix")
 
 
-def _map_matrix(node: Any, what: str) -> F64:
+def _map_matrix(node: Any, what: str, depth: int) -> F64:
     """An ``!!opencv-matrix`` (it has ``dt``) or a map with ``data`` and perhaps ``rows`` and
     ``cols``."""
     keys = set(node.keys())
@@ -262,21 +388,23 @@ def _map_matrix(node: Any, what: str) -> F64:
         if m is None:
             raise IntrinsicsError(f"{what} is a malformed opencv-matrix")
         return np.asarray(m, dtype=np.float64)
-    data = _node_matrix(node.getNode("data"), what + ".data").reshape(-1)
+    data = _node_matrix(node.getNode("data"), what + ".data", depth).reshape(-1)
     if "rows" in keys and "cols" in keys:
         rows = _node_number(node.getNode("rows"), what + ".rows")
         cols = _node_number(node.getNode("cols"), what + ".cols")
+        if not (rows.is_integer() and cols.is_integer() and rows >= 1 and cols >= 1):
+            raise IntrinsicsError(f"{what}: rows and cols must be whole numbers >= 1")
         if rows * cols != data.size:
             raise IntrinsicsError(f"{what} says {rows:g} x {cols:g} but has {data.size} numbers")
         return data.reshape(int(rows), int(cols))
     return data
 
 
-def _sequence_matrix(node: Any, what: str) -> F64:
+def _sequence_matrix(node: Any, what: str, depth: int) -> F64:
     """A sequence of numbers (a vector) or of sequences (the rows of a matrix)."""
     items = [node.at(i) for i in range(node.size())]
     if items and all(item.isSeq() for item in items):
-        rows = [_node_matrix(item, what).reshape(-1) for item in items]
+        rows = [_node_matrix(item, what, depth).reshape(-1) for item in items]
         if len({r.size for r in rows}) != 1:
             raise IntrinsicsError(f"{what} has rows of different lengths")
         return np.vstack(rows)

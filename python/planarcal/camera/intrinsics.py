@@ -33,7 +33,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import os
+import reprlib
 from pathlib import Path
 from typing import Any
 
@@ -54,11 +56,16 @@ from planarcal.camera.distortion import (
 )
 from planarcal.camera.file_storage import read_intrinsics, write_intrinsics
 from planarcal.errors import IntrinsicsError
+from planarcal.file_formats import CALIBRATION_FORMAT
 
-__all__ = ["CameraIntrinsics"]
+__all__ = ["MAX_IMAGE_SIDE_PX", "CameraIntrinsics"]
 
 F64 = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+
+MAX_IMAGE_SIDE_PX = 1_000_000
+"""The widest or tallest image any file may claim, px: far beyond any sensor (the largest
+are some 20,000 px a side), so that a size of 1e18 from a corrupt file is refused, not used."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -86,7 +93,13 @@ class CameraIntrinsics:
     def __post_init__(self) -> None:
         object.__setattr__(self, "matrix", validation.camera_matrix(self.matrix))
         object.__setattr__(self, "dist_coeffs", validation.dist_coeffs(self.dist_coeffs))
-        object.__setattr__(self, "image_size", validation.image_size(self.image_size))
+        size = validation.image_size(self.image_size)
+        if max(size) > MAX_IMAGE_SIDE_PX:
+            raise IntrinsicsError(
+                f"image_size {size[0]} x {size[1]} px is beyond any camera (at most "
+                f"{MAX_IMAGE_SIDE_PX} px a side)"
+            )
+        object.__setattr__(self, "image_size", size)
         if self.rms_px is not None:
             object.__setattr__(self, "rms_px", validation.nonnegative_number("rms_px", self.rms_px))
         if self.n_views is not None:
@@ -322,21 +335,29 @@ class CameraIntrinsics:
         ``data`` is not such a description."""
         if not isinstance(data, dict):
             raise IntrinsicsError(f"intrinsics must be a JSON object, got {type(data).__name__}")
+        if data.get("format") == CALIBRATION_FORMAT:
+            raise IntrinsicsError(
+                "this is a planarcal calibration, not camera intrinsics: load it with "
+                "Calibration.load (--calibration)"
+            )
         missing = [k for k in ("camera_matrix", "dist_coeffs", "image_size_px") if k not in data]
         if missing:
             raise IntrinsicsError(f"intrinsics lack {', '.join(missing)}: got {sorted(data)}")
-        for key in ("camera_matrix", "dist_coeffs"):
-            if not validation.nested_numbers(data[key]):
-                raise IntrinsicsError(f"intrinsics {key} must be (lists of) numbers: {data[key]!r}")
+        matrix = _json_reals(data["camera_matrix"], 2, "camera_matrix")
+        dist = _json_reals(data["dist_coeffs"], 1, "dist_coeffs")
         size = data["image_size_px"]
         if not isinstance(size, list | tuple):
-            raise IntrinsicsError(f"image_size_px must be [width, height], got {size!r}")
+            raise IntrinsicsError(
+                f"image_size_px must be [width, height], got {reprlib.repr(size)}"
+            )
         per_view = data.get("per_view_rms_px")
         if per_view is not None and not isinstance(per_view, list | tuple):
-            raise IntrinsicsError(f"per_view_rms_px must be a list of numbers, got {per_view!r}")
+            raise IntrinsicsError(
+                f"per_view_rms_px must be a list of numbers, got {reprlib.repr(per_view)}"
+            )
         return cls(
-            matrix=np.array(data["camera_matrix"], dtype=np.float64),
-            dist_coeffs=np.array(data["dist_coeffs"], dtype=np.float64),
+            matrix=matrix,
+            dist_coeffs=dist,
             image_size=validation.image_size(size),
             rms_px=data.get("rms_px"),
             n_views=data.get("n_views"),
@@ -374,3 +395,26 @@ class CameraIntrinsics:
         (corrupt or truncated), or the nodes that are missing or malformed.
         """
         return read_intrinsics(path, cls)
+
+
+def _json_reals(value: Any, depth: int, key: str) -> F64:
+    """A JSON field of finite numbers nested `depth` deep (a list of numbers, or of such
+    lists; any depth up to that is accepted, the shape is checked after), as float64;
+    IntrinsicsError naming `key` if it holds anything else (a bool, a string, null, a number
+    beyond a float, lists nested deeper). Walks no deeper than `depth`."""
+    if isinstance(value, list | tuple) and depth > 0:
+        rows = [_json_reals(v, depth - 1, key) for v in value]
+        if len({r.shape for r in rows}) > 1:
+            raise IntrinsicsError(f"intrinsics {key} has rows of different lengths")
+        return np.array(rows, dtype=np.float64)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise IntrinsicsError(
+            f"intrinsics {key} must be (lists of) numbers, got {reprlib.repr(value)}"
+        )
+    try:
+        number = float(value)
+    except OverflowError:
+        raise IntrinsicsError(f"intrinsics {key} holds a number beyond a float's range") from None
+    if not math.isfinite(number):
+        raise IntrinsicsError(f"intrinsics {key} holds {number}: numbers must be finite")
+    return np.array(number)
