@@ -134,6 +134,18 @@ class CalibrationSummary:
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
+    def __str__(self) -> str:
+        """The report `planarcal calibrate` prints (``planarcal.report.summary_text``), so
+        that ``print(cal.summary())`` reads as it does; a summary made by hand, of no
+        calibration, is its fields."""
+        cal = self.__dict__.get("_calibration")
+        if cal is None:
+            return repr(self)
+        # The report is built on this module, so it is imported when a text is asked for.
+        from planarcal.report.summary import summary_text  # noqa: PLC0415
+
+        return summary_text(cal)
+
 
 class Calibration:
     """The plane's homography, its lens model, and its report.
@@ -741,7 +753,7 @@ class Calibration:
         pred = self.predicted_loo_std_mm
         pred = pred[np.isfinite(pred)]
         nan = float("nan")
-        return CalibrationSummary(
+        summary = CalibrationSummary(
             n_points=len(self._world),
             solver=self.solver,
             refine=self.refine,
@@ -758,6 +770,9 @@ class Calibration:
             loo_mean_px=float(loo_px.mean()) if loo_px.size else nan,
             predicted_loo_rms_mm=float(np.sqrt(np.mean(pred**2))) if pred.size else nan,
         )
+        # What str(summary) describes; not a field, so no part of to_dict, == or repr.
+        object.__setattr__(summary, "_calibration", self)
+        return summary
 
     # -- persistence ------------------------------------------------------------------------
 
