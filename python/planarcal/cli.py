@@ -182,14 +182,21 @@ def _board_command(args: argparse.Namespace, page: str, board: CircleGridBoard) 
     words += ["--cols", str(board.cols), "--rows", str(board.rows), "--pitch", f"{board.pitch:g}"]
     # Sizes the user chose are kept, scaled with the pitch; unchosen ones follow it anyway.
     if args.diameter is not None:
-        words += ["--diameter", f"{board.dots_mm():.10g}"]
+        words += ["--diameter", _exact_mm(board.dots_mm())]
     if board.layout != "symmetric":
         words += ["--layout", board.layout]
     if not board.origin_marker:
         words.append("--no-origin-marker")
     elif board.marker_diameter is not None:
-        words += ["--marker-diameter", f"{board.marker_diameter:.10g}"]
+        words += ["--marker-diameter", _exact_mm(board.marker_diameter)]
     return " ".join(words)
+
+
+def _exact_mm(value: float) -> str:
+    """A length as short as it reads back exactly: a marker held at the dots' spacing must
+    not be rounded past it."""
+    short = f"{value:.10g}"
+    return short if float(short) == value else repr(float(value))
 
 
 def _offer(args: argparse.Namespace, page: str, board: CircleGridBoard) -> str:

@@ -143,6 +143,23 @@ def test_the_suggested_command_keeps_the_options_given(tmp_path: Path) -> None:
     _check_page(tmp_path / "b.svg", "A4", margin=12.0)
 
 
+def test_a_board_offered_at_a_finer_pitch_prints(tmp_path: Path) -> None:
+    # No 2 x 3 of these fits A4 at 141.3 mm: every dot is offered closer together, the dots
+    # and the marker (as wide as the spacing allows) scaled with them.
+    options = ["--cols", "3", "--rows", "3", "--pitch", "141.3", "--layout", "asymmetric"]
+    options += ["--diameter", "98.91", "--marker-diameter", "199.82"]
+    result = _run("board", "--page", "A4", *options, "-o", "b.svg", cwd=tmp_path)
+    assert result.returncode == 1
+    (command,) = _commands(result.stderr)
+    assert (_option(command, "--cols"), _option(command, "--rows")) == ("3", "3")
+    pitch = float(_option(command, "--pitch"))
+    assert pitch < 141.3 and pitch % 0.5 == 0
+    assert float(_option(command, "--diameter")) == pytest.approx(98.91 * pitch / 141.3, abs=0.01)
+    made = _run_suggested(command, tmp_path)
+    assert made.returncode == 0, made.stderr
+    assert _check_page(tmp_path / "b.svg", "A4") == 9
+
+
 def test_smaller_board_has_the_most_dots_at_the_pitch() -> None:
     paper = CircleGridBoard(origin_marker=True)
     for page in ("A4", "letter"):

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from typing import Literal
 
 from planarcal.calib.board import CircleGridBoard
+from planarcal.errors import BoardError
 from planarcal.report.printable.pages import PAGE_SIZES, num, oriented, page_family
 from planarcal.report.printable.shapes import (
     ASCENT,
@@ -419,26 +420,39 @@ def _all_dots_at_largest_pitch(
     board: CircleGridBoard, fits: Callable[[CircleGridBoard], bool]
 ) -> CircleGridBoard | None:
     """``board`` with every dot, at the largest pitch (a multiple of 0.5 mm, at least 2 mm)
-    that ``fits``: the dots and the marker scaled with it."""
+    that ``fits``: the dots and the marker scaled with it, to 0.01 mm."""
 
-    def scaled(steps: int) -> CircleGridBoard:
-        ratio = steps * _PITCH_STEP_MM / board.pitch
-        return dataclasses.replace(
-            board,
-            pitch=steps * _PITCH_STEP_MM,
-            diameter=None if board.diameter is None else board.diameter * ratio,
-            marker_diameter=None
-            if board.marker_diameter is None
-            else board.marker_diameter * ratio,
-        )
+    def scaled(steps: int) -> CircleGridBoard | None:
+        pitch = steps * _PITCH_STEP_MM
+        ratio = pitch / board.pitch
+        diameter = None if board.diameter is None else round(board.diameter * ratio, 2)
+        marker = board.marker_diameter
+        if marker is not None:
+            # Rounded, a marker as wide as the spacing, or 1.2 times the dots, can pass the
+            # bound it was on: hold it inside.
+            spacing = dataclasses.replace(
+                board, pitch=pitch, diameter=None, marker_diameter=None
+            ).neighbour_distance
+            smallest = 0.0 if diameter is None else math.ceil(diameter * 120) / 100
+            marker = min(max(round(marker * ratio, 2), smallest), math.floor(spacing * 100) / 100)
+        try:
+            return dataclasses.replace(
+                board, pitch=pitch, diameter=diameter, marker_diameter=marker
+            )
+        except BoardError:  # dots too large for the spacing once rounded: not offered
+            return None
+
+    def scaled_fits(steps: int) -> bool:
+        candidate = scaled(steps)
+        return candidate is not None and fits(candidate)
 
     low = math.ceil(_MIN_PITCH_MM / _PITCH_STEP_MM)
     high = math.ceil(board.pitch / _PITCH_STEP_MM) - 1  # strictly finer than the board's
-    if high < low or not fits(scaled(low)):
+    if high < low or not scaled_fits(low):
         return None
     while low < high:  # the largest that fits, a finer pitch fitting whenever a coarser one does
         mid = (low + high + 1) // 2
-        if fits(scaled(mid)):
+        if scaled_fits(mid):
             low = mid
         else:
             high = mid - 1
