@@ -111,8 +111,9 @@ def findHomography(
     returned, as OpenCV does with an output array.
 
     Differences from OpenCV, where it would silently go on: a threshold <= 0 or
-    ``maxIters`` < 1 raises (OpenCV substitutes values or returns None, depending on the
-    flag), and so does a confidence outside (0, 1), as OpenCV's RANSAC does.
+    ``maxIters`` outside [1, 10**7] raises (OpenCV substitutes values or returns None,
+    depending on the flag, and runs any budget), and so does a confidence outside (0, 1), as
+    OpenCV's RANSAC does. A robust search stops on Ctrl-C.
     """
     try:
         if method == 0:

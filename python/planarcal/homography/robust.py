@@ -66,8 +66,10 @@ def estimate_homography_robust(
     A problem in which no model has more support than chance returns a result with
     ``H=None`` and ``stop_reason="no_consensus"``. Bad input raises ``ArgumentError`` (a
     ``ValueError``) naming it: shapes, NaN (``index`` and ``point_set`` name the point),
-    threshold <= 0, confidence outside (0, 1), max_iters < 1; fewer than 4 points raise
-    ``HomographyError``.
+    threshold <= 0, confidence outside (0, 1), max_iters outside [1, 10**7]; fewer than 4
+    points raise ``HomographyError``, and a set no sample can fit (fewer than 4 distinct
+    points, all on one line, or all but one) ``DegenerateError``, at once. The search runs
+    with the GIL released and stops on Ctrl-C (``KeyboardInterrupt``).
     """
     return _core.estimate_homography_robust(
         src, dst, threshold, confidence, max_iters, seed, scores, method

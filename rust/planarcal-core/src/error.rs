@@ -197,6 +197,13 @@ pub enum HomographyError {
         /// Smallest over largest singular value.
         ratio: f64,
     },
+
+    /// The caller asked a long search to stop (Ctrl-C, in Python).
+    #[error("interrupted after {iterations} iterations")]
+    Interrupted {
+        /// Iterations run before the stop.
+        iterations: usize,
+    },
 }
 
 impl HomographyError {

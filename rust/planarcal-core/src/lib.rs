@@ -80,7 +80,9 @@ pub use point_failure::{PointFailure, PointReport, POINT_FAILURES};
 pub use refine::RefineReport;
 pub use reprojection::{reprojection_errors_into, ErrorStats};
 pub use robust::{
-    estimate_robust, estimate_robust_batch, Method, Pcg32, RobustOptions, RobustResult, StopReason,
+    estimate_robust, estimate_robust_batch, estimate_robust_batch_interruptible,
+    estimate_robust_interruptible, Method, Pcg32, RobustOptions, RobustResult, StopReason,
+    StopRequest, MAX_ITERS,
 };
 pub use threads::forked_child;
 pub use tracking::Tracks;

@@ -5,8 +5,9 @@
 use nalgebra::{Matrix3, Vector3};
 use planarcal_core::Pcg32;
 use planarcal_core::{
-    estimate, estimate_robust, estimate_robust_batch, HomographyError, Method, Point,
-    RobustOptions, Solver, StopReason,
+    estimate, estimate_robust, estimate_robust_batch, estimate_robust_batch_interruptible,
+    estimate_robust_interruptible, HomographyError, Method, Point, RobustOptions, Solver,
+    StopReason, MAX_ITERS,
 };
 use proptest::prelude::*;
 
@@ -281,9 +282,75 @@ fn hopeless_data_gets_no_model() {
     assert!(r.h.is_none());
     assert_eq!(r.stop, StopReason::NoConsensus);
     assert!(r.inliers.iter().all(|&b| !b));
-    // Every source point the same: nothing to fit.
-    let r = estimate_robust(&[[1.0, 2.0]; 10], &dst[..10], &RobustOptions::default());
-    assert!(r.unwrap().h.is_none());
+}
+
+#[test]
+fn sets_no_sample_can_fit_are_refused_at_once() {
+    let mut rng = Pcg32::new(3, 3);
+    let dst: Vec<Point> = (0..40)
+        .map(|_| [rng.unit() * 1280.0, rng.unit() * 720.0])
+        .collect();
+    let line: Vec<Point> = (0..40).map(|i| [i as f64, 2.0 * i as f64 + 1.0]).collect();
+    let same = [[1.0, 2.0]; 40];
+    // The whole budget would take seconds of invalid samples: refusing must not draw any.
+    let o = RobustOptions {
+        max_iters: MAX_ITERS,
+        ..RobustOptions::default()
+    };
+    for bad in [&line[..], &same[..]] {
+        for (s, d) in [(bad, &dst[..]), (&dst[..], bad)] {
+            for method in [Method::Msac, Method::Lmeds] {
+                let o = RobustOptions {
+                    method,
+                    ..o.clone()
+                };
+                let e = estimate_robust(s, d, &o).unwrap_err();
+                assert!(e.is_degenerate(), "{e}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_stop_request_interrupts_a_search_and_a_batch() {
+    let mut rng = Pcg32::new(4, 4);
+    let mut points = || -> Vec<Point> {
+        (0..200)
+            .map(|_| [rng.unit() * 1280.0, rng.unit() * 720.0])
+            .collect()
+    };
+    let (src, dst) = (points(), points());
+    // Hopeless data and the largest budget: only the stop request ends it soon.
+    let o = RobustOptions {
+        max_iters: MAX_ITERS,
+        confidence: 0.999_999,
+        ..RobustOptions::default()
+    };
+    let polls = std::sync::atomic::AtomicUsize::new(0);
+    let stop = || polls.fetch_add(1, std::sync::atomic::Ordering::Relaxed) >= 3;
+    let e = estimate_robust_interruptible(&src, &dst, &o, &stop).unwrap_err();
+    assert!(matches!(e, HomographyError::Interrupted { iterations } if iterations > 0));
+    let problems = vec![(&src[..], &dst[..]); 6];
+    let results = estimate_robust_batch_interruptible(&problems, &o, &|| true);
+    assert_eq!(results.len(), 6);
+    for r in results {
+        assert!(matches!(r, Err(HomographyError::Interrupted { .. })));
+    }
+}
+
+#[test]
+fn budgets_beyond_the_cap_are_refused() {
+    let o = RobustOptions {
+        max_iters: MAX_ITERS + 1,
+        ..RobustOptions::default()
+    };
+    assert!(matches!(
+        o.validate(),
+        Err(HomographyError::InvalidParameter {
+            name: "max_iters",
+            ..
+        })
+    ));
 }
 
 #[test]

@@ -2,6 +2,9 @@
 //! float32) buffer without copying; let NumPy copy whatever has to be converted (other dtypes,
 //! strided, misaligned or byte-swapped arrays, lists) into a fresh array that is all three.
 
+use std::ptr;
+
+use numpy::npyffi::{get_type_object, npy_intp, NpyTypes, PY_ARRAY_API};
 use numpy::{
     PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -205,4 +208,39 @@ pub fn matrix3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<nalgebra::Matrix3
         ));
     }
     Ok(nalgebra::Matrix3::from_row_slice(values))
+}
+
+/// A new C-contiguous array of `shape`, its elements not yet written. NumPy's failure to
+/// allocate it is a MemoryError (rust-numpy's own constructors panic on it).
+///
+/// # Safety
+/// The caller must write every element before Python can read the array.
+pub unsafe fn uninit_array<'py, T: numpy::Element>(
+    py: Python<'py>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+    let mut dims = shape
+        .iter()
+        .map(|&d| npy_intp::try_from(d))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|_| pyo3::exceptions::PyMemoryError::new_err(format!("shape {shape:?}")))?;
+    // SAFETY: NumPy's documented constructor; it steals the dtype reference, and the null
+    // strides and data ask it to allocate a C-contiguous buffer itself.
+    let raw = unsafe {
+        PY_ARRAY_API.PyArray_NewFromDescr(
+            py,
+            get_type_object(py, NpyTypes::PyArray_Type),
+            T::get_dtype(py).into_dtype_ptr(),
+            dims.len() as std::os::raw::c_int,
+            dims.as_mut_ptr(),
+            ptr::null_mut(),
+            ptr::null_mut(),
+            0,
+            ptr::null_mut(),
+        )
+    };
+    // SAFETY: a new reference, or null with the Python error set (MemoryError, ValueError for
+    // a shape too large); an array of T's dtype when not null.
+    let any = unsafe { Bound::from_owned_ptr_or_err(py, raw) }?;
+    Ok(unsafe { any.cast_into_unchecked() })
 }

@@ -12,6 +12,7 @@ mod part_pose;
 mod plane_model;
 mod reprojection;
 mod robust;
+mod signals;
 mod tracking;
 mod transform;
 

@@ -5,7 +5,7 @@ use planarcal_core::{reprojection_errors_into, ErrorStats, Orientation, PointSet
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
-use crate::errors::{no_image, to_py};
+use crate::errors::{invalid_arg, no_image, to_py};
 use crate::transform::{new_array, on_invalid, OnInvalid};
 
 /// reprojection_errors(h, src, dst, invalid="raise")
@@ -32,8 +32,14 @@ pub fn reprojection_errors<'py>(
             dst: d.len(),
         }));
     }
-    let (out, report) = new_array::<f64, _>(py, &[n], n, n, |slice| {
-        reprojection_errors_into(&m, s, d, slice, Orientation::Oriented)
+    let (out, (report, overflow)) = new_array::<f64, _>(py, &[n], n, n, |slice| {
+        let report = reprojection_errors_into(&m, s, d, slice, Orientation::Oriented);
+        // An error beyond float64's range is +inf too, although the point has an image.
+        let overflow = match mode {
+            OnInvalid::Raise => slice.iter().position(|e| e.is_infinite()),
+            OnInvalid::Fill => None,
+        };
+        (report, overflow)
     })?;
     let report = report.map_err(to_py)?;
     if mode == OnInvalid::Raise && report.invalid() > 0 {
@@ -42,6 +48,16 @@ pub fn reprojection_errors<'py>(
             n,
             "source points",
             Some(PointSet::Source),
+        ));
+    }
+    if let Some(i) = overflow {
+        return Err(invalid_arg(
+            "dst",
+            format!(
+                "the reprojection error of point {i} is beyond float64's range (dst {:?}, H src \
+                 maps far from it): scale the coordinates down",
+                d[i]
+            ),
         ));
     }
     Ok(out)

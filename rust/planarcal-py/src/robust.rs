@@ -8,8 +8,8 @@
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use planarcal_core::{
-    estimate_robust, estimate_robust_batch, with_unit_h33, Method, Point, RobustOptions,
-    RobustResult as CoreResult, StopReason,
+    estimate_robust_batch_interruptible, estimate_robust_interruptible, with_unit_h33, Method,
+    Point, RobustOptions, RobustResult as CoreResult, StopReason, MAX_ITERS,
 };
 use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
@@ -17,12 +17,9 @@ use pyo3::types::{PyBool, PyBytes, PyFloat, PyList, PyString, PyTuple, PyType};
 use pyo3::{intern, IntoPyObjectExt};
 
 use crate::convert::{f64_array, points2, Points2};
-use crate::errors::{invalid, to_py, to_py_in};
+use crate::errors::{invalid, to_py};
 use crate::estimate::{matrix_out, HomographyAndMask};
-
-/// Most iterations the core is asked for: a larger max_iters means "no limit", and the
-/// iteration and draw counters must not overflow.
-const MAX_ITERS_CAP: usize = 1 << 62;
+use crate::signals::Signals;
 
 /// The outcome of a robust fit.
 ///
@@ -241,20 +238,20 @@ where
     })
 }
 
-/// max_iters as a count: negative is out of range here (the core's type cannot hold it), 0
-/// is the core's to reject, and beyond MAX_ITERS_CAP means no limit.
+/// max_iters as a count: the core checks the range (RobustOptions::validate); a value its
+/// type cannot hold is out of that range here.
 fn max_iters(obj: &Bound<'_, PyAny>) -> PyResult<usize> {
-    let negative = || {
+    let out_of_range = || {
         let k = obj.str().map(|s| s.to_string()).unwrap_or_default();
-        invalid(format!("max_iters must be at least 1, got {k}"))
+        invalid(format!(
+            "max_iters must be between 1 and {MAX_ITERS} (the search stops sooner once the \
+             confidence is reached), got {k}"
+        ))
     };
     match integer::<i64>(obj, "max_iters") {
-        Ok(k) => usize::try_from(k)
-            .map(|k| k.min(MAX_ITERS_CAP))
-            .map_err(|_| negative()),
+        Ok(k) => usize::try_from(k).map_err(|_| out_of_range()),
         Err(Some(e)) => Err(e),
-        Err(None) if obj.lt(0)? => Err(negative()),
-        Err(None) => Ok(MAX_ITERS_CAP),
+        Err(None) => Err(out_of_range()),
     }
 }
 
@@ -326,7 +323,10 @@ pub fn estimate_homography_robust<'py>(
     let o = options(threshold, confidence, max_iters, Some(seed), method, scores)?;
     let (s, d) = (points2(src, "src")?, points2(dst, "dst")?);
     let (s, d) = (s.as_points(), d.as_points());
-    let r = py.detach(|| estimate_robust(s, d, &o)).map_err(to_py)?;
+    let signals = Signals::new();
+    let r = py
+        .detach(|| estimate_robust_interruptible(s, d, &o, &|| signals.poll()))
+        .map_err(|e| signals.error(e, ""))?;
     Ok(RobustResult::from_core(py, r))
 }
 
@@ -362,10 +362,11 @@ pub fn estimate_homography_robust_batch<'py>(
         .iter()
         .map(|(s, d)| (s.as_points(), d.as_points()))
         .collect();
-    let results = py.detach(|| estimate_robust_batch(&views, &o));
+    let signals = Signals::new();
+    let results = py.detach(|| estimate_robust_batch_interruptible(&views, &o, &|| signals.poll()));
     let out = PyList::empty(py);
     for (i, r) in results.into_iter().enumerate() {
-        let r = r.map_err(|e| to_py_in(e, &format!("problems[{i}]: ")))?;
+        let r = r.map_err(|e| signals.error(e, &format!("problems[{i}]: ")))?;
         out.append(RobustResult::from_core(py, r).into_bound_py_any(py)?)?;
     }
     Ok(out)
@@ -395,7 +396,16 @@ pub fn find_homography_robust<'py>(
     if ordered {
         o.scores = Some((0..s.len()).map(|i| -(i as f64)).collect());
     }
-    let r = py.detach(|| estimate_robust(s, d, &o)).map_err(to_py)?;
+    let signals = Signals::new();
+    let r = match py.detach(|| estimate_robust_interruptible(s, d, &o, &|| signals.poll())) {
+        Ok(r) => r,
+        // No sample of such a set can fit: OpenCV's answer, no homography and an empty mask.
+        Err(e) if e.is_degenerate() => {
+            let mask = PyArray1::from_vec(py, vec![0u8; s.len()]).reshape([s.len(), 1])?;
+            return Ok((None, mask));
+        }
+        Err(e) => return Err(signals.error(e, "")),
+    };
     let n = r.inliers.len();
     let h = r.h.as_ref().and_then(with_unit_h33);
     let mask: Vec<u8> = if h.is_some() {

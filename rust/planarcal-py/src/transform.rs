@@ -4,7 +4,9 @@ use numpy::{PyArrayDyn, PyArrayMethods};
 use planarcal_core::{invert, Coord, Homography, Orientation, PointReport, Projective};
 use pyo3::prelude::*;
 
-use crate::convert::{f64_array, float_array, matrix3, point_count, points2, ArrayArg, Floats};
+use crate::convert::{
+    f64_array, float_array, matrix3, point_count, points2, uninit_array, ArrayArg, Floats,
+};
 use crate::errors::{invalid, no_image, to_py};
 
 /// Above this many points a transform runs with the GIL released.
@@ -55,7 +57,7 @@ pub fn new_array<'py, T: numpy::Element + Coord, R: Send>(
     }
     // SAFETY: fresh, C-contiguous, aligned and not yet visible to Python (no other
     // reference can alias it); every element is written by `fill` (see above).
-    let out = unsafe { PyArrayDyn::<T>::new(py, shape.to_vec(), false) };
+    let out = unsafe { uninit_array::<T>(py, shape) }?;
     let slice = unsafe { out.as_slice_mut() }.map_err(|e| invalid(format!("output: {e}")))?;
     let report = maybe_detach(py, points, || fill(slice));
     Ok((out, report))

@@ -24,11 +24,14 @@ mod progressive;
 mod sampler;
 mod sprt;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::RecvTimeoutError;
+
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::correspondences::check_finite;
-use crate::error::{HomographyError, PointSet, Result};
+use crate::correspondences::Correspondences;
+use crate::error::{HomographyError, Result};
 use crate::estimate::{estimate, refine_homography, Solver};
 use crate::threads;
 use crate::Point;
@@ -180,6 +183,24 @@ const INITIAL_DELTA: f64 = 0.001;
 /// Chance that a wrong model reaches the required support, over all hypotheses tested.
 const NON_RANDOMNESS: f64 = 0.01;
 
+/// Most iterations a search may be asked for. At about a microsecond per rejected hypothesis
+/// this bounds a hopeless search to seconds; uniform sampling needs no more to draw an
+/// all-inlier sample at 3 % inliers with confidence 0.999, and the guided sampling finds
+/// structures far sparser than that in a few thousand.
+pub const MAX_ITERS: usize = 10_000_000;
+
+/// A caller's request to stop a long search, polled between batches of samples; true stops
+/// the search with `HomographyError::Interrupted`. A batch polls it on the calling thread only.
+pub type StopRequest<'a> = &'a (dyn Fn() -> bool + Sync);
+
+/// How often a batch's calling thread polls its stop request while the workers run.
+const BATCH_POLL: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// Never stops.
+fn never() -> bool {
+    false
+}
+
 impl RobustOptions {
     /// Checks every option against its range: the one place that does (the bindings only
     /// convert the caller's objects to these types). The scores' length, which depends on the
@@ -205,6 +226,13 @@ impl RobustOptions {
         if self.max_iters == 0 {
             return bad("max_iters", 0.0, "at least 1");
         }
+        if self.max_iters > MAX_ITERS {
+            return bad(
+                "max_iters",
+                self.max_iters as f64,
+                "at most 10000000 (the search stops sooner once the confidence is reached)",
+            );
+        }
         if let Some(v) = self.scores.iter().flatten().find(|v| !v.is_finite()) {
             return bad("scores", *v, "finite numbers");
         }
@@ -229,27 +257,30 @@ pub fn estimate_robust(
     dst: &[Point],
     options: &RobustOptions,
 ) -> Result<RobustResult> {
-    if src.len() != dst.len() {
-        return Err(HomographyError::LengthMismatch {
-            src: src.len(),
-            dst: dst.len(),
-        });
-    }
+    estimate_robust_interruptible(src, dst, options, &never)
+}
+
+/// As [`estimate_robust`], polling `stop` between batches of samples.
+///
+/// A set that no sample can fit (fewer than 4 distinct points, all on one line, or all but
+/// one) fails at once as degenerate, rather than drawing max_iters invalid samples.
+pub fn estimate_robust_interruptible(
+    src: &[Point],
+    dst: &[Point],
+    options: &RobustOptions,
+    stop: StopRequest<'_>,
+) -> Result<RobustResult> {
     let n = src.len();
-    if n < 4 {
-        return Err(HomographyError::TooFewPoints { got: n });
-    }
-    check_finite(src, PointSet::Source)?;
-    check_finite(dst, PointSet::Destination)?;
+    Correspondences::new(src, dst)?;
     check_options(options, n)?;
     let mut rng = Pcg32::new(options.seed, 0);
     let Some(data) = Data::new(src, dst, options.threshold, &mut rng) else {
-        // Every source (or destination) point is the same point.
+        // Unreachable after the general-position check: every point the same point.
         return Ok(RobustResult::failure(n, 0, options.threshold, 0));
     };
     let search = match options.method {
-        Method::Msac => msac_search(&data, options, &mut rng),
-        Method::Lmeds => lmeds_search(&data, options, &mut rng),
+        Method::Msac => msac_search(&data, options, &mut rng, stop)?,
+        Method::Lmeds => lmeds_search(&data, options, &mut rng, stop)?,
     };
     let threshold = (options.method == Method::Msac).then_some(options.threshold);
     Ok(finish(&data, src, dst, search, threshold))
@@ -260,16 +291,48 @@ pub fn estimate_robust_batch(
     problems: &[(&[Point], &[Point])],
     options: &RobustOptions,
 ) -> Vec<Result<RobustResult>> {
+    estimate_robust_batch_interruptible(problems, options, &never)
+}
+
+/// As [`estimate_robust_batch`], polling `stop` on the calling thread (only it may see the
+/// caller's signals) while the workers run; once it asks to stop, every search still running
+/// or not yet started fails with `HomographyError::Interrupted`.
+pub fn estimate_robust_batch_interruptible(
+    problems: &[(&[Point], &[Point])],
+    options: &RobustOptions,
+    stop: StopRequest<'_>,
+) -> Vec<Result<RobustResult>> {
     let serial = RobustOptions {
         parallel: false,
         ..options.clone()
     };
-    let run = |&(s, d): &(&[Point], &[Point])| estimate_robust(s, d, &serial);
-    if options.parallel && problems.len() > 1 && threads::pool_allowed() {
-        problems.par_iter().map(run).collect()
-    } else {
-        problems.iter().map(run).collect()
+    if !(options.parallel && problems.len() > 1 && threads::pool_allowed()) {
+        return problems
+            .iter()
+            .map(|&(s, d)| estimate_robust_interruptible(s, d, &serial, stop))
+            .collect();
     }
+    let cancelled = AtomicBool::new(false);
+    let cancel = || cancelled.load(Ordering::Relaxed);
+    let run =
+        |&(s, d): &(&[Point], &[Point])| estimate_robust_interruptible(s, d, &serial, &cancel);
+    std::thread::scope(|scope| {
+        let (done, finished) = std::sync::mpsc::channel();
+        let workers = scope.spawn(move || {
+            let results: Vec<_> = problems.par_iter().map(run).collect();
+            // The receiver waits until the results are ready; it cannot be gone.
+            let _ = done.send(());
+            results
+        });
+        while let Err(RecvTimeoutError::Timeout) = finished.recv_timeout(BATCH_POLL) {
+            if stop() {
+                cancelled.store(true, Ordering::Relaxed);
+            }
+        }
+        workers
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+    })
 }
 
 /// What a search found: the best model in normalised coordinates, and how it went.
@@ -355,7 +418,12 @@ enum Scored {
     Tested([f64; 9], Verdict),
 }
 
-fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
+fn msac_search(
+    data: &Data,
+    o: &RobustOptions,
+    rng: &mut Pcg32,
+    stop: StopRequest<'_>,
+) -> Result<Search> {
     let n = data.n as u32;
     // Caller-given scores: the stopping rule may use no less than the better half of them,
     // since nothing says how well they rank (a ranking that puts a wrong structure first
@@ -386,6 +454,9 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         uniform.min(progressive)
     };
     while left(draws, k_max, &progressive) > 0.0 && iterations < o.max_iters && draws < draw_cap {
+        if stop() {
+            return Err(HomographyError::Interrupted { iterations });
+        }
         // Outliers dominate after the probe: rank the correspondences by neighbourhood
         // consistency and sample the most consistent first (PROSAC), which finds an
         // all-inlier sample in tens of draws where uniform sampling needs thousands.
@@ -527,17 +598,22 @@ fn msac_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     } else {
         StopReason::MaxIterations
     };
-    Search {
+    Ok(Search {
         best,
         iterations,
         stop,
         t2: data.t2,
         delta: geometric_delta(data, data.t2),
         lo_runs,
-    }
+    })
 }
 
-fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
+fn lmeds_search(
+    data: &Data,
+    o: &RobustOptions,
+    rng: &mut Pcg32,
+    stop: StopRequest<'_>,
+) -> Result<Search> {
     let n = data.n as u32;
     // LMedS assumes at most half the points are outliers.
     let half = sprt::all_inliers(data.n.div_ceil(2), data.n);
@@ -546,6 +622,9 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
     let mut iterations = 0;
     let mut samples = Vec::with_capacity(BATCH);
     while iterations < k {
+        if stop() {
+            return Err(HomographyError::Interrupted { iterations });
+        }
         let batch = BATCH.min(k - iterations);
         samples.clear();
         for _ in 0..batch {
@@ -605,14 +684,14 @@ fn lmeds_search(data: &Data, o: &RobustOptions, rng: &mut Pcg32) -> Search {
         inliers: data.inliers(&b.h, t2).len(),
         ..b
     });
-    Search {
+    Ok(Search {
         best,
         iterations,
         stop: StopReason::Converged,
         t2,
         delta: geometric_delta(data, t2),
         lo_runs,
-    }
+    })
 }
 
 /// The median squared residual of h over all points (LMedS's cost).
