@@ -167,6 +167,7 @@ def test_a_file_without_its_residuals_is_refused(plain: Calibration, tmp_path: P
         (lambda d: d.update(refine="true"), "refine must be true or false"),
         (lambda d: d.update(solver=["normalized_dlt"]), "unknown solver"),
         (lambda d: d.update(version=True), "version true"),
+        (lambda d: d.update(version=3.0), r"version 3\.0; this planarcal .* reads versions"),
         (lambda d: d["summary"].update(rms_px="0.5"), r"summary.rms_px must be .* got '0.5'"),
         (lambda d: d.update(lens_candidates="none"), "lens_candidates must be a list"),
         (lambda d: d.update(lens_note=7), "lens_note must be a string"),

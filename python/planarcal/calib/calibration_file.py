@@ -288,7 +288,7 @@ def _check_format(data: dict[str, Any], source: str) -> None:
             f"{_show(file_format)}, not {FILE_FORMAT!r}); make one with `planarcal calibrate`"
         )
     version = data.get("version")
-    if isinstance(version, bool) or version not in READS_VERSIONS:
+    if not _is_int(version) or version not in READS_VERSIONS:
         raise CalibrationFileError(
             f"{source} is calibration file version {_show(version)}; this planarcal "
             f"({_core.__version__}) reads versions "
