@@ -119,6 +119,12 @@ def test_an_edited_lens_is_refused(tmp_path: Path) -> None:
     data["lens_model"] = "none"  # the same H and points read without their lens
     _refused(tmp_path / "nolens.json", data, "do not belong together")
     data = copy.deepcopy(good)
+    data["lens"]["centre_px"] = "12"  # read once as the centre (1, 2)
+    _refused(tmp_path / "centre.json", data, r"lens.centre_px must be \[x, y\]: it is '12'")
+    data = copy.deepcopy(good)
+    data["lens"]["k2"] = "0.006"
+    _refused(tmp_path / "k2.json", data, "lens.k2 must be a finite number, got '0.006'")
+    data = copy.deepcopy(good)
     data["lens"]["model"] = "k1"
     _refused(tmp_path / "model.json", data, "lens.model 'k1' is not lens_model 'k1k2c'")
 
