@@ -131,11 +131,16 @@ def kill_savers(
     return seen
 
 
+needs_anonymous_files = pytest.mark.skipif(
+    not hasattr(os, "O_TMPFILE"),
+    reason="no O_TMPFILE here: a killed save leaves a temporary file",
+)
+
+
+@needs_anonymous_files
 def test_a_killed_save_leaves_a_complete_file_and_no_debris(
     points_file: tuple[Path, str], tmp_path: Path
 ) -> None:
-    if not hasattr(os, "O_TMPFILE"):
-        pytest.skip("no O_TMPFILE here: a killed save leaves its temporary file")
     assert len(points_file[1]) > 4_000_000
     seen = kill_savers(points_file, tmp_path, 50, "anonymous", seed=1)
     assert seen.changed >= 10  # the savers were saving when killed, not only starting
@@ -226,6 +231,7 @@ def board_png(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+@needs_anonymous_files
 def test_a_killed_calibrate_leaves_the_previous_calibration(
     board_png: Path, tmp_path: Path
 ) -> None:
