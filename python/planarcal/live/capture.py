@@ -30,7 +30,10 @@ own select timeout) may keep its thread longer. The device stays held until that
 released it. ``close()`` too waits at most ``timeout_s`` for the release.
 
 Opening reads the first frame (each step bounded by ``timeout_s``), so that the resolution is
-that of real frames and a source that opens but delivers nothing fails at once.
+that of real frames and a source that opens but delivers nothing fails at once. A folder's
+images that cannot be decoded before its first good one do not stop the opening: the first
+``read()`` calls raise their ``CameraError`` one by one, as for a bad image later on, and the
+opening fails only when no image of the folder can be decoded.
 
 A ``Camera`` can be shared between threads (calls are serialised) but is meant for one
 consumer: two threads reading it get alternate frames.
@@ -202,6 +205,8 @@ class Camera:
         self._fps: float | None = None
         self._resolution = (0, 0)
         self._pending: Frame | None = None
+        # A folder's undecodable images before its first good one, raised by read() in turn.
+        self._pending_errors: list[CameraError] = []
         self._closed = False
         try:
             self._pending = self._open(opener, width, height)
@@ -223,9 +228,12 @@ class Camera:
         self._label = backend.label
         self._kind = backend.kind
         self._fps = backend.fps
-        got = self._call(self._read_job, "deliver its first frame")
+        got = self._first_frame()
         if got is None:
-            raise CameraError(self._no_first_frame_message())
+            message = self._no_first_frame_message()
+            if self._pending_errors:
+                message += f"; the first: {self._pending_errors[0]}"
+            raise CameraError(message)
         first = got[0]
         self._resolution = (int(first.shape[1]), int(first.shape[0]))
         if (width is not None and width != self._resolution[0]) or (
@@ -233,6 +241,17 @@ class Camera:
         ):
             raise CameraError(self._resolution_message(width, height))
         return first
+
+    def _first_frame(self) -> tuple[Frame, str] | None:
+        """The source's first frame; a folder's images that cannot be decoded are skipped
+        (kept for read() to raise) until one can."""
+        while True:
+            try:
+                return self._call(self._read_job, "deliver its first frame")
+            except CameraError as e:
+                if self._kind != "folder" or self._closed:
+                    raise
+                self._pending_errors.append(e)
 
     # -- properties ----------------------------------------------------------------------------
 
@@ -299,6 +318,8 @@ class Camera:
         """
         with self._lock:
             self._check_open()
+            if self._pending_errors:
+                raise self._pending_errors.pop(0)
             if self._pending is not None:
                 frame, self._pending = self._pending, None
             else:
@@ -395,6 +416,7 @@ class Camera:
                 return
             self._closed = True
             self._pending = None
+            self._pending_errors.clear()
             if not self._worker.stopped:
                 try:
                     self._worker.call(self._slot.release, self._timeout_s)
@@ -474,6 +496,8 @@ class Camera:
                 f"{self._label} opened but has no frame OpenCV can decode. Check that it is "
                 "complete and plays (ffprobe/ffplay)"
             )
+        if self._kind == "folder":
+            return f"{self._label}: none of its {len(self._pending_errors)} images can be decoded"
         return (
             f"{self._label} opened but delivered no frame. Check that it is not in use by "
             "another program and is streaming video"
