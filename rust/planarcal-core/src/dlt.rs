@@ -177,8 +177,10 @@ pub fn plain_dlt(c: &Correspondences, max_forward_error: f64) -> Result<Matrix3<
             a[(r + 1, k)] = row2[k];
         }
     }
+    // Unordered: nalgebra's ordering panics on a NaN singular value (an overflowed entry);
+    // the order is taken below with total_cmp, and a NaN fails the conditioning test.
     let svd = a
-        .try_svd(false, true, f64::EPSILON, 10_000)
+        .try_svd_unordered(false, true, f64::EPSILON, 10_000)
         .ok_or(HomographyError::RankDeficient { ratio: f64::NAN })?;
     let v_t = svd
         .v_t

@@ -774,7 +774,12 @@ fn fit_at_radius(
             ratios.push(q);
         }
         let v = DMatrix::from_fn(nodes, coefficients, |j, k| ts[j].powi(k as i32));
-        let Ok(c) = v.svd(true, true).solve(&DVector::from_vec(ratios), 1e-15) else {
+        // Bounded and unordered: nalgebra's plain svd() iterates until convergence and
+        // panics on a NaN singular value.
+        let Some(svd) = v.try_svd_unordered(true, true, f64::EPSILON, 10_000) else {
+            continue;
+        };
+        let Ok(c) = svd.solve(&DVector::from_vec(ratios), 1e-15) else {
             continue;
         };
         if !c.iter().all(|x| x.is_finite()) {
