@@ -7,12 +7,18 @@ shapes in view: a 1280 x 720 frame of pure noise costs what a board photograph d
 component is kept when it is a filled ellipse: its area matches the ellipse of its second
 moments (a ring, a digit or a stroke does not), its axes are within 1:3 and it does not touch
 the image's border. A blob is a component seen at two or more levels, one inside the other.
+
+Memory: a level needs its mask (1 byte a pixel) and its labels (4, or 2 where a large image's
+components fit 16 bits); a small image's levels are read two at a time, a large one's one at
+a time, so the search needs a few bytes a pixel above the image, whatever its size.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import cv2
 import numpy as np
@@ -27,6 +33,10 @@ LEVELS = tuple(range(15, 250, 15))
 FILL_RANGE = (0.8, 1.2)
 # Second-moment ratio (minor / major): 1:3 axes at most.
 MIN_INERTIA_RATIO = 1.0 / 9.0
+# Above this many pixels the levels are read one at a time, with 16-bit labels where they fit.
+LARGE_IMAGE_PX = 1 << 24
+# Candidates' bounding-box pixels whose moments are summed at a time.
+MOMENT_BATCH_PX = 1 << 21
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,13 +55,33 @@ class Blobs:
         return Blobs(self.centres[keep], self.diameters[keep], self.levels[keep])
 
 
-def find_blobs(ink_dark: NDArray[np.uint8], min_diameter: float, max_diameter: float) -> Blobs:
-    """The dark blobs of `ink_dark` whose equivalent diameter is in [min_diameter,
-    max_diameter] px, each seen at two or more grey levels."""
+def find_blobs(
+    image: NDArray[np.uint8], min_diameter: float, max_diameter: float, *, dark: bool = True
+) -> Blobs:
+    """The dark blobs of `image` (light ones with ``dark=False``: those of 255 - image, found
+    without making that copy) whose equivalent diameter is in [min_diameter, max_diameter]
+    px, each seen at two or more grey levels."""
     area_range = (np.pi / 4 * min_diameter**2, np.pi / 4 * max_diameter**2)
-    # OpenCV releases the GIL: the levels are read side by side.
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        per_level = list(pool.map(lambda t: _level_components(ink_dark, t, area_range), LEVELS))
+
+    def at_level(level: int) -> tuple[F64, F64]:
+        return _level_components(image, level, area_range, dark)
+
+    # The masks are nested, so two levels whose masks hold as many pixels have the same mask
+    # and the same components: each distinct mask is read once. A mask that is empty or
+    # whole has no component that does not touch the border (a blank or saturated image
+    # costs nothing).
+    inked = _inked_pixels(image, dark)
+    distinct = sorted({inked[level]: level for level in reversed(LEVELS)}.items())
+    to_read = [level for count, level in distinct if 0 < count < image.size]
+    if image.size > LARGE_IMAGE_PX:
+        read = [at_level(level) for level in to_read]
+    else:
+        # OpenCV releases the GIL: the levels are read side by side.
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            read = list(pool.map(at_level, to_read))
+    by_count = {inked[level]: found for level, found in zip(to_read, read, strict=True)}
+    nothing = (np.zeros((0, 2)), np.zeros(0))
+    per_level = [by_count.get(inked[level], nothing) for level in LEVELS]
     # Chain each level's components to the previous level's at the same place.
     groups: list[NDArray[np.intp]] = []
     n_groups = 0
@@ -85,27 +115,87 @@ def find_blobs(ink_dark: NDArray[np.uint8], min_diameter: float, max_diameter: f
     return _one_per_place(Blobs(centres, diameters, c[seen].astype(np.int64)))
 
 
+def _inked_pixels(image: NDArray[np.uint8], dark: bool) -> NDArray[np.int64]:
+    """For each level 0..256, how many pixels are darker than it (of 255 - image where not
+    `dark`): the size of its mask."""
+    # calcHist counts in float32, exact to 2^24: a block of rows at a time keeps it exact.
+    rows = max(1, (1 << 22) // max(1, image.shape[1]))
+    hist = np.zeros(256, dtype=np.int64)
+    for top in range(0, image.shape[0], rows):
+        block = image[top : top + rows]
+        hist += cv2.calcHist([block], [0], None, [256], [0, 256]).ravel().astype(np.int64)
+    if not dark:
+        hist = hist[::-1]
+    return np.concatenate([[0], np.cumsum(hist)])
+
+
 def _level_components(
-    ink_dark: NDArray[np.uint8], level: int, area_range: tuple[float, float]
+    image: NDArray[np.uint8], level: int, area_range: tuple[float, float], dark: bool
 ) -> tuple[F64, F64]:
     """Centres (K, 2) and equivalent diameters (K,) of the filled ellipses darker than
-    `level`."""
-    h, w = ink_dark.shape
-    _, mask = cv2.threshold(ink_dark, level - 1, 1, cv2.THRESH_BINARY_INV)
-    _, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    area = stats[:, cv2.CC_STAT_AREA].astype(np.float64)
-    x0, y0 = stats[:, cv2.CC_STAT_LEFT], stats[:, cv2.CC_STAT_TOP]
-    bw, bh = stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT]
-    ok = (area >= area_range[0]) & (area <= area_range[1])
-    ok &= (x0 > 0) & (y0 > 0) & (x0 + bw < w) & (y0 + bh < h)
+    `level` (of 255 - image where not `dark`)."""
+    h, w = image.shape
+    if dark:
+        _, mask = cv2.threshold(image, level - 1, 1, cv2.THRESH_BINARY_INV)
+    else:  # 255 - image < level
+        _, mask = cv2.threshold(image, 255 - level, 1, cv2.THRESH_BINARY)
+    labels, stats, centroids = _components(mask)
+    del mask
+    # The area test first, on the integer areas: a noise image has a million components a
+    # level, and only those of a dot's size need the rest.
+    pixels = stats[:, cv2.CC_STAT_AREA]
+    ids = np.flatnonzero(
+        (pixels >= math.ceil(area_range[0])) & (pixels <= math.floor(area_range[1]))
+    )
+    ids = ids[ids > 0]  # 0 is the background
+    x0, y0 = stats[ids, cv2.CC_STAT_LEFT], stats[ids, cv2.CC_STAT_TOP]
+    bw, bh = stats[ids, cv2.CC_STAT_WIDTH], stats[ids, cv2.CC_STAT_HEIGHT]
+    area = pixels[ids].astype(np.float64)
+    ok = (x0 > 0) & (y0 > 0) & (x0 + bw < w) & (y0 + bh < h)
     # An ellipse fills at least half its bounding box (pi/8 at 1:3 and 45 degrees, digitised).
     ok &= area >= 0.38 * bw * bh
-    ok[0] = False  # the background
-    ids = np.flatnonzero(ok)
-    if ids.size == 0:
+    if not ok.any():
         return np.zeros((0, 2)), np.zeros(0)
-    # Second moments of the candidates, in bulk over their bounding boxes' pixels.
-    x0, y0, bw, bh = x0[ids], y0[ids], bw[ids], bh[ids]
+    ids, x0, y0, bw, bh, area = ids[ok], x0[ok], y0[ok], bw[ok], bh[ok], area[ok]
+    centres = np.asarray(centroids[ids], dtype=np.float64)
+    del stats, centroids
+    keep = np.zeros(len(ids), dtype=bool)
+    # Second moments of the candidates, in bulk over their bounding boxes' pixels, a batch
+    # of candidates at a time (the pixel arrays take 50 bytes a pixel).
+    sizes = (bw * bh).astype(np.int64)
+    ends = np.cumsum(sizes)
+    first = 0
+    while first < len(ids):
+        last = max(
+            first + 1, int(np.searchsorted(ends, ends[first] - sizes[first] + MOMENT_BATCH_PX))
+        )
+        batch = slice(first, last)
+        keep[batch] = _filled_components(
+            labels,
+            ids[batch],
+            x0[batch],
+            y0[batch],
+            bw[batch],
+            bh[batch],
+            centres[batch],
+            area[batch],
+        )
+        first = last
+    return centres[keep], np.sqrt(4.0 * area[keep] / np.pi)
+
+
+def _filled_components(
+    labels: NDArray[Any],
+    ids: NDArray[np.intp],
+    x0: NDArray[Any],
+    y0: NDArray[Any],
+    bw: NDArray[Any],
+    bh: NDArray[Any],
+    centres: F64,
+    area: F64,
+) -> NDArray[np.bool_]:
+    """Which of these components (labels `ids`, bounding boxes, centroids, areas) are filled
+    ellipses, by their second moments over their pixels."""
     sizes = (bw * bh).astype(np.int64)
     owner = np.repeat(np.arange(len(ids)), sizes)
     offset = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
@@ -113,15 +203,39 @@ def _level_components(
     py = y0[owner] + offset // bw[owner]
     mine = labels[py, px] == ids[owner]
     owner = owner[mine]
-    dx = px[mine] - centroids[ids[owner], 0]
-    dy = py[mine] - centroids[ids[owner], 1]
+    dx = px[mine] - centres[owner, 0]
+    dy = py[mine] - centres[owner, 1]
     k = len(ids)
-    a = area[ids]
-    sxx = np.bincount(owner, dx * dx, minlength=k) / a + 1.0 / 12.0
-    syy = np.bincount(owner, dy * dy, minlength=k) / a + 1.0 / 12.0
-    sxy = np.bincount(owner, dx * dy, minlength=k) / a
-    ids = ids[_filled_ellipses(a, sxx, syy, sxy)]
-    return centroids[ids].astype(np.float64), np.sqrt(4.0 * area[ids] / np.pi)
+    sxx = np.bincount(owner, dx * dx, minlength=k) / area + 1.0 / 12.0
+    syy = np.bincount(owner, dy * dy, minlength=k) / area + 1.0 / 12.0
+    sxy = np.bincount(owner, dx * dy, minlength=k) / area
+    return _filled_ellipses(area, sxx, syy, sxy)
+
+
+def _components(mask: NDArray[Any]) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any]]:
+    """OpenCV's 8-connected components of `mask`: labels, stats, centroids. A large image's
+    labels are 16-bit where its components fit (half the memory of 32-bit ones). MemoryError
+    where OpenCV runs out of memory (it raises cv2.error)."""
+    try:
+        if mask.size > LARGE_IMAGE_PX:
+            try:
+                _, labels, stats, centroids = cv2.connectedComponentsWithStats(
+                    mask, connectivity=8, ltype=cv2.CV_16U
+                )
+                return np.asarray(labels), np.asarray(stats), np.asarray(centroids)
+            except cv2.error as e:
+                if e.code == cv2.Error.StsNoMem:
+                    raise
+                # else more than 65535 components: 32-bit labels
+        _, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        return np.asarray(labels), np.asarray(stats), np.asarray(centroids)
+    except cv2.error as e:
+        if e.code != cv2.Error.StsNoMem:
+            raise
+        h, w = mask.shape
+        raise MemoryError(
+            f"not enough memory to search a {w} x {h} image for dots (OpenCV: {e.err})"
+        ) from None
 
 
 def _filled_ellipses(area: F64, sxx: F64, syy: F64, sxy: F64) -> NDArray[np.bool_]:

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterator
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import cv2
 import numpy as np
@@ -59,7 +59,7 @@ from planarcal.calib.grid_search import (
 )
 from planarcal.errors import ArgumentError, BoardNotFoundError, BoardTurnedError, DegenerateError
 from planarcal.homography import estimate_homography, reprojection_errors, transform_points
-from planarcal.images import as_grey
+from planarcal.images import ROWS_PER_CHUNK, grey_levels
 
 F64 = NDArray[np.float64]
 Polarity = Literal["auto", "dark", "light"]
@@ -175,7 +175,7 @@ def detect_board(
         raise ArgumentError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
     if not isinstance(board, CircleGridBoard):
         raise ArgumentError(f"board must be a CircleGridBoard, got {type(board).__name__}")
-    grey = as_grey(image)
+    grey = grey_levels(image)
     polarities: tuple[Literal["dark", "light"], ...] = (
         ("dark", "light") if polarity == "auto" else (polarity,)
     )
@@ -183,13 +183,17 @@ def detect_board(
     seen: list[SeenBlobs] = []
     turned_error: BoardTurnedError | None = None
     for pol in polarities:
-        ink_dark = grey if pol == "dark" else 255.0 - grey
-        u8 = np.clip(np.rint(ink_dark), 0, 255).astype(np.uint8)
-        blobs = find_blobs(u8, MIN_DOT_PX, _largest_dot_px(u8.shape, board))
+        # Memory: an 8-bit image is searched as it is (the light dots' search thresholds it
+        # the other way), a float one through one 8-bit copy per polarity; the float copy
+        # the refinement reads is made only once there is a grid to refine.
+        u8, dark = _search_image(grey, pol)
+        blobs = find_blobs(u8, MIN_DOT_PX, _largest_dot_px(u8.shape, board), dark=dark)
+        ink = _InkDark(grey, pol)
         grids: list[tuple[int, int, int]] = []
-        for method, points, sizes, filled in _candidates(u8, blobs, board, pol, refused, grids):
+        candidates = _candidates(u8, blobs, board, pol, refused, grids)
+        for method, points, sizes, filled in candidates:
             try:
-                return _finish(ink_dark, points, sizes, filled, board, method, pol, blobs, turned)
+                return _finish(ink.get(), points, sizes, filled, board, method, pol, blobs, turned)
             except BoardTurnedError as e:
                 turned_error = turned_error or e
                 refused.append(RefusedCandidate(method, pol, points, str(e)))
@@ -197,6 +201,7 @@ def detect_board(
                 refused.append(RefusedCandidate(method, pol, points, str(why)))
         largest = max(grids, key=lambda g: g[2], default=None)
         seen.append(SeenBlobs(pol, blobs.centres, blobs.diameters, largest))
+        del u8, ink, candidates  # free this polarity's images before the next one's
     h, w = grey.shape
     diagnostics = DetectionDiagnostics(board, (w, h), tuple(seen), tuple(refused))
     if turned_error is not None:
@@ -206,6 +211,45 @@ def detect_board(
 
 class _RefusedError(Exception):
     """A candidate grid that failed a check (the reason is the message)."""
+
+
+def _search_image(
+    grey: NDArray[np.uint8] | NDArray[np.float32], polarity: Literal["dark", "light"]
+) -> tuple[NDArray[np.uint8], bool]:
+    """The 8-bit image the blob search reads for `polarity`, and whether it shows the dots
+    dark (else light: an 8-bit grey image as it is, for light dots)."""
+    if grey.dtype == np.uint8:
+        return cast(NDArray[np.uint8], grey), polarity == "dark"
+    return _ink_u8(cast(NDArray[np.float32], grey), polarity), True
+
+
+def _ink_u8(grey: NDArray[np.float32], polarity: Literal["dark", "light"]) -> NDArray[np.uint8]:
+    """The ink (grey, or 255 - grey for light dots) rounded to 8 bits, a block of rows at a
+    time."""
+    out = np.empty(grey.shape, dtype=np.uint8)
+    for top in range(0, grey.shape[0], ROWS_PER_CHUNK):
+        rows = slice(top, top + ROWS_PER_CHUNK)
+        ink = grey[rows] if polarity == "dark" else np.float32(255.0) - grey[rows]
+        out[rows] = np.clip(np.rint(ink), 0, 255)
+    return out
+
+
+class _InkDark:
+    """The float32 ink (grey, or 255 - grey for light dots) that the refinement reads, made
+    on first use: a search that finds no grid never holds it."""
+
+    def __init__(
+        self, grey: NDArray[np.uint8] | NDArray[np.float32], polarity: Literal["dark", "light"]
+    ) -> None:
+        self._grey = grey
+        self._polarity = polarity
+        self._ink: NDArray[np.float32] | None = None
+
+    def get(self) -> NDArray[np.float32]:
+        if self._ink is None:
+            grey = self._grey.astype(np.float32, copy=False)
+            self._ink = grey if self._polarity == "dark" else np.float32(255.0) - grey
+        return self._ink
 
 
 # ------------------------------------------------------------------------------------------
@@ -685,7 +729,7 @@ def _continues_beyond(
 
 
 def _explain(
-    grey: NDArray[np.float32],
+    grey: NDArray[np.uint8] | NDArray[np.float32],
     board: CircleGridBoard,
     seen: list[SeenBlobs],
     polarities: tuple[Literal["dark", "light"], ...],
