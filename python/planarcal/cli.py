@@ -1,7 +1,8 @@
 """The `planarcal` command line: board, intrinsics, calibrate, register, locate, run, demo.
 
 Exit status: 0 on success, 1 when the job fails (no board in view, a file that cannot be read
-or written: one clear line on stderr, no traceback), 2 for a malformed command line.
+or written: one clear line on stderr, no traceback), 2 for a malformed command line or one
+asking for what is not installed (`--report` without matplotlib: one line naming the extra).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from planarcal.calib.board import LAYOUTS, CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
 from planarcal.camera import CameraIntrinsics, calibrate_camera
-from planarcal.errors import ArgumentError, BoardError, BoardNotFoundError
+from planarcal.errors import ArgumentError, BoardError, BoardNotFoundError, MissingDependencyError
 from planarcal.files import atomic_write
 from planarcal.homography import SOLVERS
 from planarcal.images import load_image
@@ -31,6 +32,7 @@ from planarcal.live.capture import Camera
 from planarcal.live.objects import locate_objects
 from planarcal.report import summary_json, summary_text, write_detection_failure, write_report
 from planarcal.report.drawing import draw_objects, png_bytes
+from planarcal.report.figure import require_matplotlib
 from planarcal.report.printable import (
     CHECK_BAR_MM,
     PrintLayout,
@@ -212,6 +214,8 @@ def _dots_and_pitch(board: CircleGridBoard) -> str:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
+    if args.report is not None:
+        require_matplotlib()  # before the work: the figures cannot be drawn without it
     board = _board(args)
     intrinsics = None
     if args.intrinsics is not None:
@@ -382,6 +386,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     if args.report is not None:
+        require_matplotlib()  # before the work: the figures cannot be drawn without it
         args.report.mkdir(parents=True, exist_ok=True)  # before the work, a bad place fails now
     print(demo.run(report=args.report))
     return 0
@@ -611,6 +616,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+    except MissingDependencyError as e:
+        # The command line asks for what this installation lacks: a usage error.
+        print(f"planarcal {args.command}: error: {e}", file=sys.stderr)
+        return 2
     except _EXPECTED as e:
         print(f"planarcal {args.command}: error: {e}", file=sys.stderr)
         return 1

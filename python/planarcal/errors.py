@@ -3,7 +3,8 @@
 ``Error`` is the root: ``except planarcal.Error`` catches whatever planarcal raises on purpose.
 Where the input is at fault the exception is also a ``ValueError``, so ``except ValueError``
 keeps working for code that does not know the library; ``CameraError`` is an ``OSError`` (a
-device or a stream failed, not an argument). The Rust bindings raise the classes below too
+device or a stream failed, not an argument), ``MissingDependencyError`` an ``ImportError`` (an
+optional extra is not installed). The Rust bindings raise the classes below too
 (``pyo3::import_exception!`` looks them up here), so each class has one definition::
 
     Error
@@ -20,6 +21,7 @@ device or a stream failed, not an argument). The Rust bindings raise the classes
     ├── BoardError, ImageError, BoardNotFoundError (BoardTurnedError), CalibrationFileError,
     │   FrameSizeError, IntrinsicsError, OutputError                          (ValueError)
     ├── CameraError              (OSError)
+    ├── MissingDependencyError   (ImportError) an optional extra is not installed
     └── StateError               (RuntimeError) a call the object's state does not allow
 
 Errors about one point say which, as attributes, so callers need not parse the message:
@@ -49,6 +51,7 @@ __all__ = [
     "ImageError",
     "IntrinsicsError",
     "LensModelError",
+    "MissingDependencyError",
     "OpenCVCompatibleArgumentError",
     "OpenCVCompatibleError",
     "OpenCVCompatiblePointAtInfinityError",
@@ -184,6 +187,12 @@ class FrameSizeError(Error, ValueError):
 
 class CameraError(Error, OSError):
     """A camera, video, stream or image folder that cannot be opened or stops delivering."""
+
+
+class MissingDependencyError(Error, ImportError):
+    """A call needs a package of an optional extra that is not installed (the report's
+    figures need matplotlib: ``pip install 'planarcal[report]'``); the message says what to
+    install, ``name`` is the missing package."""
 
 
 class StateError(Error, RuntimeError):

@@ -20,8 +20,10 @@
   was refused) and the error, as PNG.
 * printable/: the board itself, printable at exact scale as SVG or PDF.
 
-The figures share figure.py (a figure and its PNG), fits.py (the fit before the lens model)
-and mapping.py (where the image's pixels land on the plane).
+The figures share figure.py (the one check that matplotlib, the extra ``planarcal[report]``,
+is installed, a figure and its PNG), fits.py (the fit before the lens model) and mapping.py
+(where the image's pixels land on the plane). The tables and the summaries need no matplotlib;
+every figure raises MissingDependencyError without it.
 """
 
 from planarcal.report.deviations import deviation_figure

@@ -160,8 +160,9 @@ def write_detection_failure(
     out_dir: str | os.PathLike[str], image: Any, diagnostics: Any, message: str
 ) -> Path:
     """Writes ``detection_failure_figure`` as detection_failed.png into `out_dir` (created if
-    need be), atomically; returns its path."""
+    need be), atomically; returns its path. Without matplotlib (the extra ``planarcal[report]``)
+    raises MissingDependencyError, and creates nothing."""
+    figure = detection_failure_figure(image, diagnostics, message)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    figure = detection_failure_figure(image, diagnostics, message)
     return atomic_write(out / DETECTION_FAILED_PNG, figure)

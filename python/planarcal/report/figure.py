@@ -1,5 +1,6 @@
-"""What every figure of the report shares: a matplotlib figure drawn without choosing a
-backend, its PNG bytes, and the board's outline on the plane."""
+"""What every figure of the report shares: the one check that matplotlib (the optional extra
+``planarcal[report]``) is there, a matplotlib figure drawn without choosing a backend, its PNG
+bytes, and the board's outline on the plane."""
 
 from __future__ import annotations
 
@@ -10,14 +11,40 @@ import numpy as np
 
 from planarcal.arguments import F64
 from planarcal.calib.calibration import Calibration
+from planarcal.errors import MissingDependencyError
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+MATPLOTLIB_MISSING = (
+    "the report's figures need matplotlib, which is not installed: pip install 'planarcal[report]'"
+)
+"""What drawing a figure says when matplotlib is not installed (`planarcal calibrate --report`
+says it before any work)."""
+
+
+def require_matplotlib() -> None:
+    """Loads matplotlib for the report's figures, or raises MissingDependencyError saying how
+    to install it. Every figure is drawn after this check; it is cheap once matplotlib is
+    loaded."""
+    try:
+        import matplotlib.figure  # noqa: F401, PLC0415 (loaded only when a figure is drawn)
+    except ImportError as e:
+        if not (isinstance(e, ModuleNotFoundError) and e.name == "matplotlib"):
+            # Installed but broken (a dependency of its own missing, a binary that does not
+            # load): say what failed.
+            raise MissingDependencyError(
+                f"the report's figures need matplotlib, which is installed but cannot be "
+                f"imported ({e}): pip install --force-reinstall matplotlib",
+                name="matplotlib",
+            ) from e
+        raise MissingDependencyError(MATPLOTLIB_MISSING, name="matplotlib") from e
+
 
 def new_figure(width: float, height: float) -> Figure:
     """A figure `width` x `height` inches at 100 dpi, laid out by matplotlib's constrained
-    layout."""
+    layout. Raises MissingDependencyError without matplotlib."""
+    require_matplotlib()
     # The OO API alone: savefig renders through Agg without a backend being chosen, and
     # choosing one (matplotlib.use) would change the backend of the user's own plots.
     from matplotlib.figure import Figure  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from planarcal.arguments import F64
 from planarcal.calib.calibration import Calibration, LensModel
 from planarcal.errors import HomographyError, IntrinsicsError, LensModelError
+from planarcal.report.figure import require_matplotlib
 
 if TYPE_CHECKING:
     from planarcal.camera.intrinsics import CameraIntrinsics
@@ -105,6 +106,7 @@ def mappable(cal: Calibration, px: F64) -> NDArray[np.bool_]:
     elif cal.intrinsics is not None:
         fold = _intrinsics_fold(cal.intrinsics)
         if math.isfinite(fold):
+            require_matplotlib()
             from matplotlib.path import Path as Outline  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
             # The pixels the lens shows the unfolded directions at: inside the fold's image

@@ -41,10 +41,10 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     lines at multiples of the uncertainty at the board's centre and the line where it
     doubles marked; as PNG bytes. Pixels with no place on the plane (beyond the lens
     model's valid radius, past the horizon) are left blank."""
+    fig = new_figure(11, 8.5)  # first: it checks that matplotlib is installed
     from matplotlib.colors import LogNorm, Normalize  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
     from matplotlib.tri import Triangulation  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
-    fig = new_figure(11, 8.5)
     ax = fig.add_subplot()
     world = cal.world_points
     centre_mm = 0.5 * (world.min(axis=0) + world.max(axis=0))

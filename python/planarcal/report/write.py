@@ -12,6 +12,7 @@ from planarcal.calib.calibration import Calibration
 from planarcal.files import atomic_write
 from planarcal.report.deviations import deviation_figure
 from planarcal.report.drawing import draw_detection, png_bytes
+from planarcal.report.figure import require_matplotlib
 from planarcal.report.lens import lens_figure
 from planarcal.report.points import points_csv
 from planarcal.report.summary import residual_note, summary_json
@@ -27,7 +28,9 @@ def write_report(
 ) -> list[Path]:
     """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png and (with an
     image and its detection) detection.png into `out_dir` (created if need be), each
-    atomically; returns the paths written."""
+    atomically; returns the paths written. Without matplotlib (the extra ``planarcal[report]``)
+    raises MissingDependencyError before writing anything."""
+    require_matplotlib()  # before the tables: no half-written report
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = [
