@@ -137,6 +137,14 @@ def test_demo_runs_without_matplotlib(no_matplotlib: Path, tmp_path: Path) -> No
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize("suffix", [".pdf", ".svg"])
+def test_board_prints_without_matplotlib(no_matplotlib: Path, tmp_path: Path, suffix: str) -> None:
+    out = tmp_path / f"board{suffix}"
+    result = _planarcal("board", "-o", out, blocked=no_matplotlib)
+    assert result.returncode == 0, result.stderr
+    assert out.read_bytes().startswith(b"%PDF" if suffix == ".pdf" else b"<?xml")
+
+
 def test_demo_report_is_refused_up_front_naming_the_extra(
     no_matplotlib: Path, tmp_path: Path
 ) -> None:
