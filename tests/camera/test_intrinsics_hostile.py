@@ -109,7 +109,8 @@ def test_an_opencv_fisheye_calibration_is_refused(tmp_path: Path) -> None:
     ("width", "match"),
     [
         ("1e18", r"image_size 1000000000000000000 x 720 px is beyond any camera"),
-        ("9" * 401, "image_width is an integer too large to read"),
+        # OpenCV 5 reads it as a clamped integer, OpenCV 4 fails an assertion on it.
+        ("9" * 401, "image_width is an integer too large to read|OpenCV cannot read its nodes"),
         ('"1280"', r"image_width is not a number \(it is the text '1280'\)"),
         ("true", "line 1: image_width holds true or false where a number belongs"),
         (".nan", "image_width is nan, not a finite number"),

@@ -129,6 +129,10 @@ def read_intrinsics(path: str | os.PathLike[str], make: Callable[..., T]) -> T:
     if "\x00" in text:
         raise IntrinsicsError(f"{str(p)!r} is not an OpenCV YAML/XML file: it has NUL bytes")
     _check_text(text, repr(str(p)))
+    if not text.lstrip().startswith(("%YAML", "<", "{")):
+        # Plain YAML without OpenCV's header (a ROS camera_info): OpenCV 4 tells the format
+        # from the header alone and refuses it ("Unsupported file storage format").
+        text = "%YAML:1.0\n" + text
     try:
         fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
         opened = fs.isOpened()
@@ -144,7 +148,14 @@ def read_intrinsics(path: str | os.PathLike[str], make: Callable[..., T]) -> T:
             f"{str(p)!r} holds no OpenCV calibration nodes (expected camera_matrix, "
             "distortion_coefficients, image_width, image_height)"
         )
-    return _from_file_storage(root, repr(str(p)), make)
+    try:
+        return _from_file_storage(root, repr(str(p)), make)
+    except (cv2.error, SystemError) as e:
+        # OpenCV 4 asserts while reading some malformed nodes (a 401-digit integer).
+        raise IntrinsicsError(
+            f"{str(p)!r} is not a valid OpenCV YAML/XML/JSON file (OpenCV cannot read its "
+            f"nodes): {last_line(e)}"
+        ) from None
 
 
 def _check_text(text: str, source: str) -> None:
