@@ -10,7 +10,9 @@ the image's border. A blob is a component seen at two or more levels, one inside
 
 Memory: a level needs its mask (1 byte a pixel) and its labels (4, or 2 where a large image's
 components fit 16 bits); a small image's levels are read two at a time, a large one's one at
-a time, so the search needs a few bytes a pixel above the image, whatever its size.
+a time, with OpenCV's statistics (tens of bytes a component per thread) taken of the
+components of a dot's size alone, so the search needs a few bytes a pixel above the image,
+whatever its size and content. Levels whose masks are the same are read once.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -33,10 +35,13 @@ LEVELS = tuple(range(15, 250, 15))
 FILL_RANGE = (0.8, 1.2)
 # Second-moment ratio (minor / major): 1:3 axes at most.
 MIN_INERTIA_RATIO = 1.0 / 9.0
-# Above this many pixels the levels are read one at a time, with 16-bit labels where they fit.
+# Above this many pixels the levels are read one at a time, with 16-bit labels where they fit,
+# and the statistics are taken of the components of a dot's size alone.
 LARGE_IMAGE_PX = 1 << 24
 # Candidates' bounding-box pixels whose moments are summed at a time.
 MOMENT_BATCH_PX = 1 << 21
+# Pixels of a large image's labels counted at a time.
+LABEL_BLOCK_PX = 1 << 20
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,8 +68,10 @@ def find_blobs(
     px, each seen at two or more grey levels."""
     area_range = (np.pi / 4 * min_diameter**2, np.pi / 4 * max_diameter**2)
 
+    width = _LabelWidth()
+
     def at_level(level: int) -> tuple[F64, F64]:
-        return _level_components(image, level, area_range, dark)
+        return _level_components(image, level, area_range, dark, width)
 
     # The masks are nested, so two levels whose masks hold as many pixels have the same mask
     # and the same components: each distinct mask is read once. A mask that is empty or
@@ -129,8 +136,20 @@ def _inked_pixels(image: NDArray[np.uint8], dark: bool) -> NDArray[np.int64]:
     return np.concatenate([[0], np.cumsum(hist)])
 
 
+@dataclasses.dataclass
+class _LabelWidth:
+    """Whether a large image's labels need 32 bits: set once a level of the search has more
+    components than 16 bits number, so that the levels after it do not try 16 first."""
+
+    wide: bool = False
+
+
 def _level_components(
-    image: NDArray[np.uint8], level: int, area_range: tuple[float, float], dark: bool
+    image: NDArray[np.uint8],
+    level: int,
+    area_range: tuple[float, float],
+    dark: bool,
+    width: _LabelWidth,
 ) -> tuple[F64, F64]:
     """Centres (K, 2) and equivalent diameters (K,) of the filled ellipses darker than
     `level` (of 255 - image where not `dark`)."""
@@ -139,26 +158,17 @@ def _level_components(
         _, mask = cv2.threshold(image, level - 1, 1, cv2.THRESH_BINARY_INV)
     else:  # 255 - image < level
         _, mask = cv2.threshold(image, 255 - level, 1, cv2.THRESH_BINARY)
-    labels, stats, centroids = _components(mask)
+    labels, ids, boxes, pixels, centroids = _sized_components(mask, area_range, width)
     del mask
-    # The area test first, on the integer areas: a noise image has a million components a
-    # level, and only those of a dot's size need the rest.
-    pixels = stats[:, cv2.CC_STAT_AREA]
-    ids = np.flatnonzero(
-        (pixels >= math.ceil(area_range[0])) & (pixels <= math.floor(area_range[1]))
-    )
-    ids = ids[ids > 0]  # 0 is the background
-    x0, y0 = stats[ids, cv2.CC_STAT_LEFT], stats[ids, cv2.CC_STAT_TOP]
-    bw, bh = stats[ids, cv2.CC_STAT_WIDTH], stats[ids, cv2.CC_STAT_HEIGHT]
-    area = pixels[ids].astype(np.float64)
+    x0, y0, bw, bh = boxes.T
+    area = pixels.astype(np.float64)
     ok = (x0 > 0) & (y0 > 0) & (x0 + bw < w) & (y0 + bh < h)
     # An ellipse fills at least half its bounding box (pi/8 at 1:3 and 45 degrees, digitised).
     ok &= area >= 0.38 * bw * bh
     if not ok.any():
         return np.zeros((0, 2)), np.zeros(0)
     ids, x0, y0, bw, bh, area = ids[ok], x0[ok], y0[ok], bw[ok], bh[ok], area[ok]
-    centres = np.asarray(centroids[ids], dtype=np.float64)
-    del stats, centroids
+    centres = np.asarray(centroids[ok], dtype=np.float64)
     keep = np.zeros(len(ids), dtype=bool)
     # Second moments of the candidates, in bulk over their bounding boxes' pixels, a batch
     # of candidates at a time (the pixel arrays take 50 bytes a pixel).
@@ -212,23 +222,26 @@ def _filled_components(
     return _filled_ellipses(area, sxx, syy, sxy)
 
 
-def _components(mask: NDArray[Any]) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any]]:
-    """OpenCV's 8-connected components of `mask`: labels, stats, centroids. A large image's
-    labels are 16-bit where its components fit (half the memory of 32-bit ones). MemoryError
-    where OpenCV runs out of memory (it raises cv2.error)."""
+def _sized_components(
+    mask: NDArray[Any], area_range: tuple[float, float], width: _LabelWidth
+) -> tuple[NDArray[Any], NDArray[np.intp], NDArray[Any], NDArray[Any], F64]:
+    """The 8-connected components of `mask` whose area is in `area_range`: the labels image,
+    their labels (K,), bounding boxes (K, 4: left, top, width, height), areas (K,) px and
+    centroids (K, 2), by OpenCV's connectedComponentsWithStats.
+
+    A large image's are measured on a mask of them alone (OpenCV's statistics take tens of
+    bytes per component for each of its threads' stripes, and a noise image has a million
+    components per 16 Mpx): the same components, the same statistics. MemoryError where
+    OpenCV runs out of memory (it raises cv2.error)."""
+    low, high = math.ceil(area_range[0]), math.floor(area_range[1])
+    ltype = cv2.CV_32S
     try:
         if mask.size > LARGE_IMAGE_PX:
-            try:
-                _, labels, stats, centroids = cv2.connectedComponentsWithStats(
-                    mask, connectivity=8, ltype=cv2.CV_16U
-                )
-                return np.asarray(labels), np.asarray(stats), np.asarray(centroids)
-            except cv2.error as e:
-                if e.code == cv2.Error.StsNoMem:
-                    raise
-                # else more than 65535 components: 32-bit labels
-        _, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        return np.asarray(labels), np.asarray(stats), np.asarray(centroids)
+            mask, count = _sized_only(mask, low, high, width)
+            ltype = cv2.CV_16U if count < 2**16 - 1 else cv2.CV_32S
+        _, labels, stats, centroids = cv2.connectedComponentsWithStats(
+            mask, connectivity=8, ltype=ltype
+        )
     except cv2.error as e:
         if e.code != cv2.Error.StsNoMem:
             raise
@@ -236,6 +249,48 @@ def _components(mask: NDArray[Any]) -> tuple[NDArray[Any], NDArray[Any], NDArray
         raise MemoryError(
             f"not enough memory to search a {w} x {h} image for dots (OpenCV: {e.err})"
         ) from None
+    pixels = stats[:, cv2.CC_STAT_AREA]
+    # The area test first, on the integer areas: a noise image has a million components a
+    # level, and only those of a dot's size need the rest.
+    ids = np.flatnonzero((pixels >= low) & (pixels <= high))
+    ids = ids[ids > 0]  # 0 is the background
+    found = (np.asarray(labels), ids, stats[ids, :4], pixels[ids], centroids[ids])
+    return cast(tuple[NDArray[Any], NDArray[np.intp], NDArray[Any], NDArray[Any], F64], found)
+
+
+def _sized_only(
+    mask: NDArray[Any], low: int, high: int, width: _LabelWidth
+) -> tuple[NDArray[np.uint8], int]:
+    """The mask of the components of `mask` with from `low` to `high` pixels, and how many
+    there are, from OpenCV's labels alone (no statistics), a block of rows at a time."""
+    labels = _labels(mask, width)
+    h, w = labels.shape
+    n = int(labels.max()) + 1
+    rows = max(1, LABEL_BLOCK_PX // w)
+    blocks = [slice(top, top + rows) for top in range(0, h, rows)]
+    pixels = np.zeros(n, dtype=np.int64)
+    for block in blocks:
+        pixels += np.bincount(labels[block].ravel(), minlength=n)
+    sized = (pixels >= low) & (pixels <= high)
+    sized[0] = False  # the background
+    out = np.empty(labels.shape, dtype=np.uint8)
+    for block in blocks:
+        out[block] = sized[labels[block]]
+    return out, int(sized.sum())
+
+
+def _labels(mask: NDArray[Any], width: _LabelWidth) -> NDArray[Any]:
+    """OpenCV's 8-connected labels of `mask`: 16-bit where they fit, else 32-bit."""
+    if not width.wide:
+        try:
+            _, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_16U)
+            return np.asarray(labels)
+        except cv2.error as e:
+            if e.code == cv2.Error.StsNoMem:
+                raise
+            width.wide = True  # more than 65535 components
+    _, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_32S)
+    return np.asarray(labels)
 
 
 def _filled_ellipses(area: F64, sxx: F64, syy: F64, sxy: F64) -> NDArray[np.bool_]:
