@@ -61,7 +61,7 @@ from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal.calib.calibration import Calibration
-from planarcal.errors import ArgumentError, CameraError, FrameSizeError, StateError
+from planarcal.errors import ArgumentError, CameraError, FrameSizeError, ImageError, StateError
 from planarcal.live.capture import Camera, Frame
 from planarcal.live.local_map import STEP_PX
 from planarcal.live.objects import _detect, detect_objects
@@ -350,6 +350,9 @@ class Tracker:
     def process(self, frame: Frame, index: int = 0, timestamp: float | None = None) -> FrameResult:
         """One frame's objects, tracked against the frames before it. FrameSizeError if the
         frame is not of the size the calibration was made on."""
+        if not isinstance(frame, np.ndarray) or frame.ndim not in (2, 3):
+            what = f"shape {frame.shape}" if isinstance(frame, np.ndarray) else type(frame).__name__
+            raise ImageError(f"frame must be an image array (H x W or H x W x 3), got {what}")
         size = (frame.shape[1], frame.shape[0])
         if self._frame_size is not None and size != self._frame_size:
             self.calibration.check_image_size(size, what="frame")

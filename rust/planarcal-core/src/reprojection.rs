@@ -82,6 +82,18 @@ impl ErrorStats {
         let n = errors.len() as f64;
         s.mean = sum / n;
         s.rms = (sum_sq / n).sqrt();
+        if s.max.is_finite() && !(s.mean.is_finite() && s.rms.is_finite()) {
+            // Finite errors whose sum or sum of squares overflows: the same figures, scaled
+            // by the largest (at most 1 each, so nothing overflows).
+            let (mut sum, mut sum_sq) = (0.0, 0.0);
+            for &e in errors {
+                let r = e / s.max;
+                sum += r;
+                sum_sq += r * r;
+            }
+            s.mean = s.max * (sum / n);
+            s.rms = s.max * (sum_sq / n).sqrt();
+        }
         Some(s)
     }
 }
@@ -90,6 +102,15 @@ impl ErrorStats {
 mod tests {
     use super::*;
     use crate::point_failure::PointFailure;
+
+    #[test]
+    fn statistics_of_huge_finite_errors_are_finite() {
+        let s = ErrorStats::of(&[1e300, 1e300, 0.0, 3e300]).unwrap();
+        assert!((s.mean / 1.25e300 - 1.0).abs() < 1e-15, "{}", s.mean);
+        assert!(s.rms.is_finite() && (s.rms / 1.6583123951777e300 - 1.0).abs() < 1e-12);
+        let s = ErrorStats::of(&[1.0, f64::INFINITY]).unwrap();
+        assert!(s.mean.is_infinite() && s.rms.is_infinite());
+    }
 
     #[test]
     fn errors_are_euclidean_distances() {

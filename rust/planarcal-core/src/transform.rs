@@ -305,7 +305,13 @@ pub fn invert(h: &Matrix3<f64>) -> Result<Matrix3<f64>> {
         h[(0, 1)] * h[(2, 0)] - h[(0, 0)] * h[(2, 1)],
         h[(0, 0)] * h[(1, 1)] - h[(0, 1)] * h[(1, 0)],
     );
-    Ok(adj / det)
+    let inverse = adj / det;
+    // A determinant near the subnormal range passes the relative test above, yet dividing by
+    // it overflows: no inverse that float64 can hold.
+    if !inverse.iter().all(|v| v.is_finite()) {
+        return Err(HomographyError::Singular { ratio: 0.0 });
+    }
+    Ok(inverse)
 }
 
 /// Fills out[i] = f(i), in parallel chunks for large batches, `invalid` where f fails.

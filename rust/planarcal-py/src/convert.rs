@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::PyModule;
 
-use crate::errors::invalid_arg;
+use crate::errors::{invalid_arg, wrong_type};
 
 static NUMPY: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
 
@@ -74,6 +74,38 @@ fn real_ndarray<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py,
         ));
     }
     Ok(arr)
+}
+
+/// The object as the caller would read it in a message: its repr.
+pub fn shown(obj: &Bound<'_, PyAny>) -> String {
+    obj.repr()
+        .map(|r| r.to_string())
+        .unwrap_or_else(|_| obj.get_type().to_string())
+}
+
+/// A True/False option (Python's bool or NumPy's bool_), else an ArgumentTypeError naming it.
+pub fn flag(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<bool> {
+    obj.extract::<bool>()
+        .map_err(|_| wrong_type(format!("{name} must be True or False, got {}", shown(obj))))
+}
+
+/// A text option, else an ArgumentTypeError naming it.
+pub fn text<'a, 'py>(
+    obj: &'a Bound<'py, PyAny>,
+    name: &str,
+) -> PyResult<&'a Bound<'py, pyo3::types::PyString>> {
+    obj.cast::<pyo3::types::PyString>()
+        .map_err(|_| wrong_type(format!("{name} must be a string, got {}", shown(obj))))
+}
+
+/// An iterable argument's iterator, else an ArgumentTypeError naming it.
+pub fn iterate<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    what: &str,
+) -> PyResult<Bound<'py, pyo3::types::PyIterator>> {
+    obj.try_iter()
+        .map_err(|_| wrong_type(format!("{name} must be {what}, got {}", shown(obj))))
 }
 
 fn type_name(obj: &Bound<'_, PyAny>) -> String {

@@ -11,6 +11,7 @@ use pyo3::import_exception;
 use pyo3::PyErr;
 
 import_exception!(planarcal.errors, ArgumentError);
+import_exception!(planarcal.errors, ArgumentTypeError);
 import_exception!(planarcal.errors, HomographyError);
 import_exception!(planarcal.errors, DegenerateError);
 import_exception!(planarcal.errors, PointAtInfinityError);
@@ -59,6 +60,12 @@ pub fn to_py_in(e: CoreError, context: &str) -> PyErr {
     } else {
         HomographyError::new_err(a)
     }
+}
+
+/// An argument of the wrong type (a number where a flag or a name belongs), named by the
+/// caller: an ArgumentTypeError, both a ValueError and a TypeError.
+pub fn wrong_type(message: impl Into<String>) -> PyErr {
+    ArgumentTypeError::new_err(args(message.into(), None, None))
 }
 
 /// A bad argument, named by the caller (shape, dtype, option value).

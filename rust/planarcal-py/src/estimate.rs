@@ -4,7 +4,7 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use planarcal_core::{estimate_homography as core_estimate, with_unit_h33, Solver};
 use pyo3::prelude::*;
 
-use crate::convert::points2;
+use crate::convert::{flag, points2, text};
 use crate::errors::{invalid, to_py};
 
 /// OpenCV's (H or None, mask) pair.
@@ -40,15 +40,16 @@ fn fit(
 ///
 /// H (3 x 3, float64) with dst ~ H src; raises ArgumentError / HomographyError / DegenerateError.
 #[pyfunction]
-#[pyo3(signature = (src, dst, solver = "normalized_dlt", refine = false))]
 pub fn estimate_homography<'py>(
     py: Python<'py>,
     src: &Bound<'py, PyAny>,
     dst: &Bound<'py, PyAny>,
-    solver: &str,
-    refine: bool,
+    solver: &Bound<'py, PyAny>,
+    refine: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let solver: Solver = solver
+    let refine = flag(refine, "refine")?;
+    let solver: Solver = text(solver, "solver")?
+        .to_str()?
         .parse()
         .map_err(|e: planarcal_core::UnknownSolver| invalid(e.to_string()))?;
     let (s, d) = (points2(src, "src")?, points2(dst, "dst")?);

@@ -4,7 +4,7 @@ use numpy::PyArrayDyn;
 use planarcal_core::{reprojection_errors_into, ErrorStats, Orientation, PointSet};
 use pyo3::prelude::*;
 
-use crate::convert::{matrix3, points2};
+use crate::convert::{matrix3, points2, text};
 use crate::errors::{invalid_arg, no_image, to_py};
 use crate::transform::{new_array, on_invalid, OnInvalid};
 
@@ -13,15 +13,14 @@ use crate::transform::{new_array, on_invalid, OnInvalid};
 ///
 /// Per-point || dst_i - H src_i || (N, float64, destination units); no-image points raise or are inf.
 #[pyfunction]
-#[pyo3(signature = (h, src, dst, invalid = "raise"))]
 pub fn reprojection_errors<'py>(
     py: Python<'py>,
     h: &Bound<'py, PyAny>,
     src: &Bound<'py, PyAny>,
     dst: &Bound<'py, PyAny>,
-    invalid: &str,
+    invalid: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    let mode = on_invalid(invalid, "inf")?;
+    let mode = on_invalid(text(invalid, "invalid")?.to_str()?, "inf")?;
     let m = matrix3(h, "h")?;
     let (s, d) = (points2(src, "src")?, points2(dst, "dst")?);
     let (s, d) = (s.as_points(), d.as_points());

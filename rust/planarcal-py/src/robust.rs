@@ -16,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyFloat, PyList, PyString, PyTuple, PyType};
 use pyo3::{intern, IntoPyObjectExt};
 
-use crate::convert::{f64_array, points2, Points2};
+use crate::convert::{f64_array, iterate, points2, shown, Points2};
 use crate::errors::{invalid, to_py};
 use crate::estimate::{matrix_out, HomographyAndMask};
 use crate::signals::Signals;
@@ -182,12 +182,6 @@ impl RobustResult {
 }
 
 /// `repr(obj)` for a message (the type's name if even that fails).
-fn shown(obj: &Bound<'_, PyAny>) -> String {
-    obj.repr()
-        .map(|r| r.to_string())
-        .unwrap_or_else(|_| obj.get_type().to_string())
-}
-
 fn method(obj: &Bound<'_, PyAny>) -> PyResult<Method> {
     if let Ok(name) = obj.cast::<PyString>() {
         match name.to_str()? {
@@ -347,7 +341,8 @@ pub fn estimate_homography_robust_batch<'py>(
 ) -> PyResult<Bound<'py, PyList>> {
     let o = options(threshold, confidence, max_iters, Some(seed), method, None)?;
     let mut borrowed: Vec<(Points2<'py>, Points2<'py>)> = Vec::new();
-    for (i, item) in problems.try_iter()?.enumerate() {
+    let pairs = iterate(problems, "problems", "an iterable of (src, dst) pairs")?;
+    for (i, item) in pairs.enumerate() {
         let item = item?;
         let pair: (Bound<'py, PyAny>, Bound<'py, PyAny>) = item.extract().map_err(|_| {
             invalid(format!(

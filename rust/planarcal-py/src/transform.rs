@@ -5,7 +5,8 @@ use planarcal_core::{invert, Coord, Homography, Orientation, PointReport, Projec
 use pyo3::prelude::*;
 
 use crate::convert::{
-    f64_array, float_array, matrix3, point_count, points2, uninit_array, ArrayArg, Floats,
+    f64_array, flag, float_array, matrix3, point_count, points2, text, uninit_array, ArrayArg,
+    Floats,
 };
 use crate::errors::{invalid, no_image, to_py};
 
@@ -68,15 +69,15 @@ pub fn new_array<'py, T: numpy::Element + Coord, R: Send>(
 ///
 /// Points (N x 2, float64) mapped through H (or H^-1); no-image points raise or become NaN.
 #[pyfunction]
-#[pyo3(signature = (h, points, inverse = false, invalid = "raise"))]
 pub fn transform_points<'py>(
     py: Python<'py>,
     h: &Bound<'py, PyAny>,
     points: &Bound<'py, PyAny>,
-    inverse: bool,
-    invalid: &str,
+    inverse: &Bound<'py, PyAny>,
+    invalid: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    let mode = on_invalid(invalid, "nan")?;
+    let inverse = flag(inverse, "inverse")?;
+    let mode = on_invalid(text(invalid, "invalid")?.to_str()?, "nan")?;
     let mut m = matrix3(h, "h")?;
     if inverse {
         m = invert(&m).map_err(to_py)?;
