@@ -59,9 +59,11 @@ def test_tangential_undistortion_is_opencvs_and_exact(camera: CameraModel) -> No
     np.testing.assert_allclose(camera.distort(ours), normalised, atol=1e-14, rtol=0)
     # OpenCV's iterative undistortion, run to convergence, finds the same points.
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-16)
-    theirs = cv2.undistortPoints(
-        px.reshape(-1, 1, 2), camera.matrix(), camera.dist_coeffs(), criteria=criteria
-    ).reshape(-1, 2)
+    args = (px.reshape(-1, 1, 2), camera.matrix(), camera.dist_coeffs(), None, None)
+    if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4 names the criteria's variant apart
+        theirs = cv2.undistortPointsIter(*args, criteria).reshape(-1, 2)
+    else:
+        theirs = cv2.undistortPoints(*args, criteria=criteria).reshape(-1, 2)
     np.testing.assert_allclose(ours, theirs, atol=1e-11, rtol=0)
     # OpenCV's distortion of our undistorted points gives the pixels back.
     obj = np.c_[ours, np.ones(len(ours))].reshape(-1, 1, 3)
