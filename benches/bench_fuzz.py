@@ -29,12 +29,12 @@ import argparse
 import faulthandler
 import multiprocessing as mp
 import os
-import queue
 import resource
 import signal
 import subprocess
 import sys
 import time
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,6 +51,27 @@ from fuzz_inputs import ENTRIES, NUMERIC_ENTRIES, Tally, judge  # noqa: E402
 
 NUMERIC_UNIT = 5000
 FILE_UNIT = 100
+
+
+def _self_test_case(rng: Any) -> Any:
+    """--self-test's entry point: about 3% of its calls abort the process (a crash), 2% sleep
+    forever (a hang), the rest return; the watcher must count exactly those (the case's note
+    says which it is)."""
+    import fuzz_inputs  # noqa: PLC0415
+
+    u = float(rng.random())
+    kind = "crash" if u < 0.03 else "hang" if u < 0.05 else ""
+
+    def call() -> None:
+        if kind == "crash":
+            os.abort()
+        if kind == "hang":
+            time.sleep(1e6)
+
+    return fuzz_inputs.Case(call, (), {}, lambda out: None, kind)
+
+
+SELF_TEST = "self_test"
 
 
 @dataclass
@@ -83,6 +104,7 @@ def worker(
     log = open(log_path, "w")  # noqa: SIM115 (faulthandler writes to it until the end)
     faulthandler.enable(log)
     faulthandler.register(signal.SIGUSR1, file=log, all_threads=True)
+    fuzz_inputs.ENTRIES[SELF_TEST] = _self_test_case
     while (unit := tasks.get()) is not None:
         tally = Tally()
         heartbeat[1], heartbeat[2] = unit.start, unit.stop
@@ -124,21 +146,22 @@ class Campaign:
         unit = NUMERIC_UNIT if entry in NUMERIC_ENTRIES else FILE_UNIT
         pending = [Unit(entry, a, min(a + unit, count)) for a in range(0, count, unit)]
         tasks = self.ctx.Queue()
-        results = self.ctx.Queue()
+        # Written synchronously: a worker that dies right after reporting a unit (a crash in
+        # its next) must not take the report with it, as a Queue's feeder thread would.
+        results = self.ctx.SimpleQueue()
         for u in pending:
             tasks.put(u)
         outstanding = len(pending)
         started = time.perf_counter()
         workers = [self._start(tasks, results, k) for k in range(self.args.workers)]
         while outstanding:
-            try:
-                u, tally, rss = results.get(timeout=1.0)
+            if not results.empty():
+                u, tally, rss = results.get()
                 report.tally.merge(tally)
                 report.peak_rss_kib = max(report.peak_rss_kib, rss)
                 outstanding -= 1
                 continue
-            except queue.Empty:
-                pass
+            time.sleep(0.2)
             for k, w in enumerate(workers):
                 outstanding += self._watch(entry, w, tasks, report)
                 if not w[0].is_alive():
@@ -169,23 +192,23 @@ class Campaign:
         p, heartbeat, (last, since), log = w
         index, start, stop = heartbeat[0], heartbeat[1], heartbeat[2]
         now = time.monotonic()
-        if index != last:
+        if not p.is_alive():
+            if index == -1:  # between units: nothing lost (the caller starts another worker)
+                return 0
+            report.crashes.append(index)
+            what = f"crash: exit code {p.exitcode}"
+        elif index != last:
             w[2] = (index, now)
             return 0
-        if p.is_alive() and (index == -1 or now - since < self.args.hang_s):
+        elif index == -1 or now - since < self.args.hang_s:
             return 0
-        if p.is_alive():
+        else:
             os.kill(p.pid, signal.SIGUSR1)  # faulthandler: the hung call's stack into the log
             time.sleep(1.0)
             p.kill()
             p.join()
             report.hangs.append(index)
-            what = f"hang: no progress for {self.args.hang_s} s"
-        else:
-            if index == -1:
-                return 0
-            report.crashes.append(index)
-            what = f"crash: exit code {p.exitcode}"
+            what = f"hang: no progress for {self.args.hang_s:g} s"
         tail = Path(log).read_text(errors="replace")[-3000:]
         path = write_reproducer(self.findings, entry, self.args.seed, index, what)
         path.with_suffix(".log").write_text(tail)
@@ -296,6 +319,24 @@ def run_rust(cases: int) -> str:
     )
 
 
+def self_test(args: argparse.Namespace) -> None:
+    """The watcher itself: an entry point that crashes and hangs on known cases, which must be
+    counted exactly (each reproducer written, the rest of every unit still run)."""
+    import fuzz_inputs  # noqa: PLC0415
+
+    fuzz_inputs.ENTRIES[SELF_TEST] = _self_test_case
+    args.per_file_entry, args.hang_s = 120, 3.0
+    expected = Counter(c.note for _, c in fuzz_inputs.cases(SELF_TEST, args.seed, 0, 120))
+    campaign = Campaign(args)
+    campaign.run([SELF_TEST])
+    report = campaign.reports[SELF_TEST]
+    got = (len(report.crashes), len(report.hangs), report.tally.inputs)
+    want = (expected["crash"], expected["hang"], 120)
+    print(f"crashes, hangs, inputs: {got}, expected {want}")
+    if got != want:
+        raise SystemExit("the watcher miscounted")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--per-entry", type=int, default=1_000_000)
@@ -308,9 +349,13 @@ def main() -> None:
     parser.add_argument("--findings", default="/tmp/fuzz_findings")
     parser.add_argument("--rust", type=int, metavar="CASES", help="also run the core's proptest")
     parser.add_argument("--markdown", action="store_true")
+    parser.add_argument("--self-test", action="store_true", help="check the crash/hang watcher")
     args = parser.parse_args()
     if args.quick:
         args.per_entry, args.per_file_entry = 20_000, 200
+    if args.self_test:
+        self_test(args)
+        return
     campaign = Campaign(args)
     started = time.perf_counter()
     campaign.run(args.only)
