@@ -158,8 +158,10 @@ def _level_components(
         _, mask = cv2.threshold(image, level - 1, 1, cv2.THRESH_BINARY_INV)
     else:  # 255 - image < level
         _, mask = cv2.threshold(image, 255 - level, 1, cv2.THRESH_BINARY)
-    labels, ids, boxes, pixels, centroids = _sized_components(mask, area_range, width)
+    # The mask is handed over: a large image's is rewritten in place.
+    found = _sized_components(mask, area_range, width)
     del mask
+    labels, ids, boxes, pixels, centroids = found
     x0, y0, bw, bh = boxes.T
     area = pixels.astype(np.float64)
     ok = (x0 > 0) & (y0 > 0) & (x0 + bw < w) & (y0 + bh < h)
@@ -234,14 +236,13 @@ def _sized_components(
     components per 16 Mpx): the same components, the same statistics. MemoryError where
     OpenCV runs out of memory (it raises cv2.error)."""
     low, high = math.ceil(area_range[0]), math.floor(area_range[1])
-    ltype = cv2.CV_32S
     try:
         if mask.size > LARGE_IMAGE_PX:
-            mask, count = _sized_only(mask, low, high, width)
-            ltype = cv2.CV_16U if count < 2**16 - 1 else cv2.CV_32S
-        _, labels, stats, centroids = cv2.connectedComponentsWithStats(
-            mask, connectivity=8, ltype=ltype
-        )
+            count = _keep_sized_only(mask, low, high, width)
+            narrow = _LabelWidth(wide=count >= 2**16 - 1)
+            _, labels, stats, centroids = _with_stats(mask, narrow)
+        else:
+            _, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
     except cv2.error as e:
         if e.code != cv2.Error.StsNoMem:
             raise
@@ -258,11 +259,10 @@ def _sized_components(
     return cast(tuple[NDArray[Any], NDArray[np.intp], NDArray[Any], NDArray[Any], F64], found)
 
 
-def _sized_only(
-    mask: NDArray[Any], low: int, high: int, width: _LabelWidth
-) -> tuple[NDArray[np.uint8], int]:
-    """The mask of the components of `mask` with from `low` to `high` pixels, and how many
-    there are, from OpenCV's labels alone (no statistics), a block of rows at a time."""
+def _keep_sized_only(mask: NDArray[Any], low: int, high: int, width: _LabelWidth) -> int:
+    """Clears the components of `mask` (in place) that have fewer than `low` or more than
+    `high` pixels, found from OpenCV's labels alone (no statistics), a block of rows at a
+    time; how many are left."""
     labels = _labels(mask, width)
     h, w = labels.shape
     n = int(labels.max()) + 1
@@ -273,10 +273,22 @@ def _sized_only(
         pixels += np.bincount(labels[block].ravel(), minlength=n)
     sized = (pixels >= low) & (pixels <= high)
     sized[0] = False  # the background
-    out = np.empty(labels.shape, dtype=np.uint8)
     for block in blocks:
-        out[block] = sized[labels[block]]
-    return out, int(sized.sum())
+        mask[block] = sized[labels[block]]
+    return int(sized.sum())
+
+
+def _with_stats(mask: NDArray[Any], width: _LabelWidth) -> tuple[Any, ...]:
+    """cv2.connectedComponentsWithStats(mask), with 16-bit labels where they fit (while
+    labelling, a component can take several: the final count does not tell)."""
+    if not width.wide:
+        try:
+            return tuple(cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=cv2.CV_16U))
+        except cv2.error as e:
+            if e.code == cv2.Error.StsNoMem:
+                raise
+            width.wide = True
+    return tuple(cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=cv2.CV_32S))
 
 
 def _labels(mask: NDArray[Any], width: _LabelWidth) -> NDArray[Any]:
@@ -288,7 +300,7 @@ def _labels(mask: NDArray[Any], width: _LabelWidth) -> NDArray[Any]:
         except cv2.error as e:
             if e.code == cv2.Error.StsNoMem:
                 raise
-            width.wide = True  # more than 65535 components
+            width.wide = True  # more labels than 16 bits number
     _, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_32S)
     return np.asarray(labels)
 
