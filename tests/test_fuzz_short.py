@@ -4,8 +4,7 @@ judged there. Targets: no panic crossing into Python, no exception that is not p
 no result the documentation rules out, no H for a degenerate set, no corrupt file accepted,
 and no crash (a sample run in a child process).
 
-Findings not yet fixed are marked xfail(strict=True) with the finding: they show in every run
-and turn into failures the moment they are fixed, so the mark comes off then."""
+The campaign's findings (F1-F5, fixed) are kept below as their minimal cases."""
 
 from __future__ import annotations
 
@@ -26,28 +25,8 @@ FILE_CASES = 100
 # The outcomes that must never happen (fuzz_inputs' module docstring says what each means).
 FAILURES = ("unclean", "panic", "bad_result", "degenerate_h", "corrupt_accepted")
 
-F2 = "F2: bindings' option conversion raises a raw TypeError (solver, refine, inverse, invalid)"
-F3 = "F3: reprojection_stats gives rms = inf for finite errors (sum of squares overflows)"
-F4 = "F4: estimate_homography_robust_batch(non-iterable problems) raises a raw TypeError"
-F5 = "F5: Tracker.process(non-array or 1-D frame) raises AttributeError / IndexError"
-KNOWN: dict[str, str] = {
-    "estimate_homography": F2,
-    "transform_points": F2,
-    "reprojection_errors": F2,
-    "reprojection_stats": F3,
-    "estimate_homography_robust_batch": F4,
-    "Tracker.process": F5,
-}
 
-
-def entry_params() -> list[object]:
-    return [
-        pytest.param(e, marks=pytest.mark.xfail(strict=True, reason=KNOWN[e])) if e in KNOWN else e
-        for e in fuzz_inputs.ENTRIES
-    ]
-
-
-@pytest.mark.parametrize("entry", entry_params())
+@pytest.mark.parametrize("entry", list(fuzz_inputs.ENTRIES))
 def test_hostile_inputs_get_a_clean_answer(entry: str) -> None:
     n = NUMERIC_CASES if entry in fuzz_inputs.NUMERIC_ENTRIES else FILE_CASES
     tally = fuzz_inputs.run(entry, SEED, 0, n)
@@ -55,8 +34,7 @@ def test_hostile_inputs_get_a_clean_answer(entry: str) -> None:
     failures = {k: tally.outcomes[k] for k in FAILURES if tally.outcomes[k]}
     examples = "\n".join(f"  case {i}: {kind}: {detail}" for i, kind, detail in tally.findings[:8])
     assert not failures, f"{entry}: {failures}\n{examples}"
-    # Both ends are exercised: some inputs are refused, and (but for the file loaders, whose
-    # mutations are meant to break the file) some give results.
+    # Both ends are exercised: some inputs are refused, some give results.
     assert tally.outcomes["error"] > 0
     assert tally.outcomes["result"] > 0
 
@@ -122,7 +100,19 @@ def test_a_sample_runs_in_a_child_without_crashing(tmp_path: Path) -> None:
         assert panics == "0", entry
 
 
-@pytest.mark.xfail(strict=True, reason=F2)
+def test_f1_an_inverse_beyond_float64_is_singular_not_a_bad_entry() -> None:
+    # Its determinant and the bound on its rounding are both subnormal: adj / det overflowed.
+    h = np.array(
+        [
+            [0.0, 1131.238578073096, 5e-324],
+            [0.0, 7909.705425710727, 5e-324],
+            [881.7450953346641, 0.0, 0.0],
+        ]
+    )
+    with pytest.raises(pc.DegenerateError, match="singular"):
+        pc.transform_points(h, [[1.0, 2.0]], inverse=True)
+
+
 @pytest.mark.parametrize(
     "call",
     [
@@ -133,26 +123,23 @@ def test_a_sample_runs_in_a_child_without_crashing(tmp_path: Path) -> None:
         lambda s, h: pc.reprojection_errors(h, s, s, invalid=None),  # type: ignore[arg-type]
     ],
 )
-def test_f2_option_of_the_wrong_type_is_an_argument_type_error(call: object) -> None:
+def test_f2_an_option_of_the_wrong_type_is_an_argument_type_error(call: object) -> None:
     s = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
     with pytest.raises(pc.ArgumentTypeError):
         call(s, np.eye(3))  # type: ignore[operator]
 
 
-@pytest.mark.xfail(strict=True, reason=F3)
 def test_f3_stats_of_finite_errors_are_finite() -> None:
     stats = pc.error_stats(np.array([1e300, 1e300]))
     assert stats.rms == 1e300
 
 
-@pytest.mark.xfail(strict=True, reason=F4)
 @pytest.mark.parametrize("problems", [None, 3])
 def test_f4_batch_of_a_non_iterable_is_an_argument_type_error(problems: object) -> None:
     with pytest.raises(pc.ArgumentTypeError):
         pc.estimate_homography_robust_batch(problems)  # type: ignore[arg-type]
 
 
-@pytest.mark.xfail(strict=True, reason=F5)
 @pytest.mark.parametrize("frame", [None, [], np.zeros(100, np.uint8)])
 def test_f5_tracker_refuses_a_frame_that_is_not_an_image(frame: object) -> None:
     tracker = fuzz_inputs.fixtures().tracker

@@ -216,10 +216,8 @@ proptest! {
         }
     }
 
-    // Finding F1 (not yet fixed in the core): `invert` returns an infinite inverse for a
-    // matrix with subnormal entries. Run with `--ignored` to see it; remove the mark once fixed.
+    // Finding F1: `invert` gave an infinite inverse for a matrix with subnormal entries.
     #[test]
-    #[ignore = "F1: invert gives a non-finite inverse for subnormal-scaled matrices"]
     fn inverses_are_finite_or_errors(h in hostile_matrix()) {
         if let Ok(inverse) = invert(&h) {
             prop_assert!(
