@@ -135,6 +135,8 @@ def test_demo_runs_without_matplotlib(no_matplotlib: Path, tmp_path: Path) -> No
     assert result.returncode == 0, result.stderr
     assert "Found all 140 dots" in result.stdout
     assert "Traceback" not in result.stderr
+    # Its hint to see the figures says what they need.
+    assert "demo --report demo-report (after: pip install 'planarcal[report]')" in result.stdout
 
 
 @pytest.mark.parametrize("suffix", [".pdf", ".svg"])

@@ -26,6 +26,10 @@ from numpy.typing import NDArray
 
 from planarcal.errors import BoardError
 
+MAX_BOARD_DOTS_PER_SIDE = 1000
+"""The most dots a board may have a side: a 1000-dot row is a metre long at a 1 mm pitch, and
+its dots' positions (cols x rows of them) are computed whole."""
+
 Layout = Literal["symmetric", "asymmetric"]
 LAYOUTS: tuple[Layout, ...] = ("symmetric", "asymmetric")
 
@@ -55,8 +59,10 @@ class CircleGridBoard:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer):
                 raise BoardError(f"{name} must be a whole number of dots, got {value!r}")
-            if value < 2:
-                raise BoardError(f"{name} must be at least 2, got {value}")
+            if not 2 <= value <= MAX_BOARD_DOTS_PER_SIDE:
+                raise BoardError(
+                    f"{name} must be between 2 and {MAX_BOARD_DOTS_PER_SIDE} dots, got {value}"
+                )
         if self.layout not in LAYOUTS:
             raise BoardError(f"layout must be 'symmetric' or 'asymmetric', got {self.layout!r}")
         if self.layout == "asymmetric" and self.rows < 3:

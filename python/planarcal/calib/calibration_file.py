@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from planarcal import _core
 from planarcal._core import RadialLens
 from planarcal.bounded_read import read_regular_file
-from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.board import MAX_BOARD_DOTS_PER_SIDE, CircleGridBoard
 from planarcal.calib.json_number import json_number
 from planarcal.calib.lens_choice import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS
@@ -59,10 +59,6 @@ READS_VERSIONS = (1, 2, 3)
 MAX_FILE_BYTES = 16 * 2**20
 """The largest calibration file read: one of the paper's board is 30 kB, one of a 100 x 100
 dot board with its registration about 1 MB; beyond that it is not a calibration."""
-
-MAX_BOARD_DOTS_PER_SIDE = 1000
-"""The most dots a board in a file may have a side: a 1000-dot row is a metre long at a 1 mm
-pitch, and its dots' positions (cols x rows of them) are computed whole."""
 
 MAX_INT_DIGITS = 309
 """Integers longer than this are beyond a float's range (1.8e308): no field holds one."""

@@ -89,14 +89,3 @@ def image_size(value: Any) -> tuple[int, int]:
     if len(items) != 2:
         raise IntrinsicsError(f"image_size must be (width, height) in pixels, got {value!r}")
     return (whole_number("image width", items[0], 1), whole_number("image height", items[1], 1))
-
-
-def nested_numbers(value: Any) -> bool:
-    """Whether value is a number or a (nested) list of numbers (no bools, no strings)."""
-    if isinstance(value, bool):
-        return False
-    if isinstance(value, int | float):
-        return True
-    if isinstance(value, list | tuple):
-        return all(nested_numbers(v) for v in value)
-    return False

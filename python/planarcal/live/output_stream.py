@@ -136,7 +136,8 @@ class FileOutput(StreamOutput):
         flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_CLOEXEC", 0)
         flags |= getattr(os, "O_BINARY", 0)
         try:
-            fd = os.open(name, flags, 0o644)
+            # The umask's mode, as open() would give (and as files.atomic_write gives).
+            fd = os.open(name, flags, 0o666)
         except OSError as e:
             raise type(e)(
                 e.errno, f"cannot open output file {name!r} for appending: {e.strerror}"

@@ -24,10 +24,12 @@ from numpy.typing import NDArray
 from planarcal import synth
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
+from planarcal.errors import MissingDependencyError
 from planarcal.files import atomic_write
 from planarcal.live.objects import locate_objects
 from planarcal.report import summary_text, write_report
 from planarcal.report.drawing import draw_objects, png_bytes
+from planarcal.report.figure import require_matplotlib
 from planarcal.synth import paper_data
 
 REPORT_EXAMPLE = "demo-report"
@@ -159,7 +161,13 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
     say("")
     say(f"Rendered, calibrated, located and registered in {time.perf_counter() - start:.1f} s.")
     if report is None:
-        say(f"To see the figures and the images: planarcal demo --report {REPORT_EXAMPLE}")
+        # The figures need the report extra: say so here rather than after the next run.
+        try:
+            require_matplotlib()
+            extra = ""
+        except MissingDependencyError:
+            extra = " (after: pip install 'planarcal[report]')"
+        say(f"To see the figures and the images: planarcal demo --report {REPORT_EXAMPLE}{extra}")
     else:
         written = write_report(cal, report, image=board_view.image, detection=detection)
         folder = Path(report)
