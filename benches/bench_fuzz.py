@@ -121,7 +121,7 @@ def write_reproducer(folder: Path, entry: str, seed: int, index: int, what: str)
     path = folder / f"{safe}_{what.split(':')[0].split()[0]}_{index}.py"
     path.write_text(
         f"# {entry}, seed {seed}, case {index}: {what}\n"
-        f"# Run: PYTHONPATH=/work/main/python python {path}\n"
+        f"# Run: PYTHONPATH={HERE.parent / 'python'} python {path}\n"
         "import sys\n"
         f"sys.path.insert(0, {str(TESTS)!r})\n"
         "import fuzz_inputs\n\n"

@@ -616,15 +616,16 @@ def case_robust(rng: np.random.Generator) -> Case:
 
 def case_robust_batch(rng: np.random.Generator) -> Case:
     count = int(rng.choice([0, 1, 2, 3, 5]))
-    problems: Any = [pair_args(rng)[:2] for _ in range(count)]
-    if rng.random() < 0.05:
-        problems = pick(rng, (None, 3, [(1, 2)], [([[0.0, 0.0]] * 4,)], iter(problems), "ab"))
+    pairs = [pair_args(rng)[:2] for _ in range(count)]
+    problems: Any = pairs
+    if rng.random() < 0.05:  # an iterator (a valid argument, consumed by the call), or junk
+        problems = pick(rng, (None, 3, [(1, 2)], [([[0.0, 0.0]] * 4,)], iter(pairs), "ab"))
     options = robust_options(rng, 0)
 
     def check(results: Any) -> str | None:
         if not isinstance(results, list) or len(results) != count:
             return f"{type(results).__name__} for {count} problems"
-        for (src, dst), r in zip(problems, results, strict=True):
+        for (src, dst), r in zip(pairs, results, strict=True):
             problem = robust_result_problem(r, n_of(src))
             if problem or r.H is None:
                 return problem
@@ -1026,7 +1027,9 @@ def judge(case: Case) -> tuple[str, str]:
                 return "unclean", f"{name} (not the file error): {e}"[:300]
             return "error", name
         return "unclean", f"{type(e).__module__}.{name}: {e}"[:300]
-    problem = case.check(out)
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        problem = case.check(out)
     if problem is None:
         return "result", ""
     if problem.startswith("degenerate"):
