@@ -20,7 +20,6 @@ from planarcal.errors import ImageError
 from planarcal.images import as_grey, grey_levels
 
 BOARD = synth.PAPER_BOARD
-PYTHON_DIR = Path(__file__).resolve().parents[2] / "python"
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +139,6 @@ def _run_python(code: str, timeout_s: float) -> subprocess.CompletedProcess[str]
         text=True,
         timeout=timeout_s,
         check=False,
-        env={"PYTHONPATH": str(PYTHON_DIR), "PATH": "/usr/bin:/bin"},
     )
 
 
