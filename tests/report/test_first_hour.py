@@ -12,7 +12,6 @@ import pickle
 import re
 import shlex
 import subprocess
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -28,20 +27,10 @@ from planarcal.cli import build_parser
 from planarcal.report import summary_text
 from planarcal.report.printable import PAGE_SIZES, page_refusal, smaller_board
 from planarcal.synth.demo import NEXT_STEPS
+from test_cli import _run
 
 SVG = "{http://www.w3.org/2000/svg}"
 MARGIN = 10.0  # mm, the board command's default
-
-
-def _run(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "planarcal", *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-        cwd=cwd,
-    )
 
 
 def _run_suggested(command: str, cwd: Path) -> subprocess.CompletedProcess[str]:
