@@ -8,6 +8,7 @@ The campaign's findings (F1-F5, fixed) are kept below as their minimal cases."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -145,3 +146,55 @@ def test_f5_tracker_refuses_a_frame_that_is_not_an_image(frame: object) -> None:
     tracker = fuzz_inputs.fixtures().tracker
     with pytest.raises(pc.Error):
         tracker.process(frame)  # type: ignore[arg-type]
+
+
+F6_FILE = """%YAML 1.2
+---
+image_width: 1280
+image_height: 720
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 900., 0., 640., 0., 910., 360., 0., 0., 1. ]
+distortion_coefficients: !!opencv-matrix
+   rows: 5
+   coJs: 1
+   dt: d
+   data: [ -0.1, 0.02, 0.001, -0.001, 0. ]
+"""
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="F6: OpenCV's FileNode.mat() on a matrix node without cols corrupts the heap "
+    "(camera/file_storage.py must check the node before mat())",
+)
+def test_f6_an_opencv_matrix_without_cols_is_refused_without_a_crash(tmp_path: Path) -> None:
+    """A damaged `cols` key in an intrinsics file: the load must raise IntrinsicsError, and
+    the process must live on (the heap corruption shows as an abort or a segfault, at once or
+    at a later free, so the load runs in a child, repeatedly)."""
+    path = tmp_path / "camera.yml"
+    path.write_text(F6_FILE)
+    script = textwrap.dedent(f"""
+        import planarcal
+        for _ in range(200):
+            try:
+                planarcal.CameraIntrinsics.load_yaml({str(path)!r})
+            except planarcal.IntrinsicsError:
+                pass
+            else:
+                raise SystemExit("loaded")
+        print("refused 200 times")
+    """)
+    # glibc's own checks make a corrupted heap abort at the first free that sees it.
+    env = {**os.environ, "MALLOC_CHECK_": "3", "MALLOC_PERTURB_": "165"}
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        env=env,
+    )
+    assert (done.returncode, done.stdout.strip()) == (0, "refused 200 times"), done.stderr[-2000:]
