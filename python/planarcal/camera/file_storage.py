@@ -385,6 +385,11 @@ def _node_matrix(node: Any, what: str, depth: int = 0) -> F64:
     raise IntrinsicsError(f"{what} is not a matrix")
 
 
+# OpenCV's type codes of one-channel matrices (uchar, schar, ushort, short, int, float,
+# double; half in OpenCV 5).
+_ONE_CHANNEL_TYPES = frozenset({"u", "c", "w", "s", "i", "f", "d", "h"})
+
+
 def _map_matrix(node: Any, what: str, depth: int) -> F64:
     """An ``!!opencv-matrix`` (it has ``dt``) or a map with ``data`` and perhaps ``rows`` and
     ``cols``."""
@@ -392,14 +397,27 @@ def _map_matrix(node: Any, what: str, depth: int) -> F64:
     if "data" not in keys:
         raise IntrinsicsError(f"{what} is a map without 'data': {sorted(keys)}")
     if "dt" in keys:
-        try:
-            m = node.mat()
-        except (cv2.error, SystemError) as e:
-            raise IntrinsicsError(f"{what} is a malformed opencv-matrix: {last_line(e)}") from None
-        if m is None:
-            raise IntrinsicsError(f"{what} is a malformed opencv-matrix")
-        return np.asarray(m, dtype=np.float64)
+        # Read as its rows, cols and data, never by OpenCV's FileNode.mat(): on a malformed
+        # node (rows without cols) it writes out of bounds and the process aborts later.
+        dt = node.getNode("dt")
+        if not (dt.isString() and dt.string() in _ONE_CHANNEL_TYPES):
+            shown = repr(dt.string()) if dt.isString() else "not a type name"
+            raise IntrinsicsError(
+                f"{what} is an opencv-matrix of type {shown}; expected one channel of numbers "
+                f"(dt: {', '.join(sorted(_ONE_CHANNEL_TYPES))})"
+            )
+        if not ({"rows", "cols"} <= keys or "sizes" in keys):
+            raise IntrinsicsError(f"{what} is an opencv-matrix without rows and cols")
     data = _node_matrix(node.getNode("data"), what + ".data", depth).reshape(-1)
+    if "sizes" in keys and not {"rows", "cols"} <= keys:
+        # An !!opencv-nd-matrix (OpenCV 5 writes a vector as one): its sizes, one or two.
+        sizes = _node_matrix(node.getNode("sizes"), what + ".sizes", depth).reshape(-1)
+        if not (1 <= sizes.size <= 2 and all(n.is_integer() and n >= 1 for n in sizes.tolist())):
+            raise IntrinsicsError(f"{what}: sizes must be one or two whole numbers >= 1")
+        if int(np.prod(sizes)) != data.size:
+            shape = " x ".join(f"{n:g}" for n in sizes)
+            raise IntrinsicsError(f"{what} says {shape} but has {data.size} numbers")
+        return data.reshape([int(n) for n in sizes])
     if "rows" in keys and "cols" in keys:
         rows = _node_number(node.getNode("rows"), what + ".rows")
         cols = _node_number(node.getNode("cols"), what + ".cols")
