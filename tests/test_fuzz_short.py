@@ -4,7 +4,7 @@ judged there. Targets: no panic crossing into Python, no exception that is not p
 no result the documentation rules out, no H for a degenerate set, no corrupt file accepted,
 and no crash (a sample run in a child process).
 
-The campaign's findings (F1-F5, fixed) are kept below as their minimal cases."""
+The campaign's findings (F1-F7, all fixed) are kept below as their minimal cases."""
 
 from __future__ import annotations
 
@@ -195,11 +195,6 @@ def test_f6_an_opencv_matrix_without_cols_is_refused_without_a_crash(tmp_path: P
     assert (done.returncode, done.stdout.strip()) == (0, "refused 200 times"), done.stderr[-2000:]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="F7: an H for a destination set collinear but for one point to 9.4e-12 of its RMS "
-    "radius (under the core's 1e-10): the all-but-one check misses it",
-)
 @pytest.mark.parametrize("solver", pc.SOLVERS)
 def test_f7_all_but_one_collinear_within_the_core_tolerance_is_degenerate(solver: str) -> None:
     # The bench's case 994382 (seed 15): the source is whole pixels, the destination's first

@@ -247,3 +247,34 @@ proptest! {
         }
     }
 }
+
+/// Finding F7: a destination collinear but for one point to 9.4e-12 of its RMS radius (under
+/// the core's own tolerance) was given an H by every solver.
+#[test]
+fn all_but_one_collinear_within_the_tolerance_is_refused() {
+    let src: Vec<Point> = vec![
+        [2094.0, 1289.0],
+        [2281.0, 1241.0],
+        [1533.0, 1434.0],
+        [2576.0, 1165.0],
+        [1426.0, 1462.0],
+    ];
+    let dst: Vec<Point> = vec![
+        [2184.0539268932484, -253.79535873920528],
+        [2397.688518778658, -446.58145687066315],
+        [1556.1673684513582, 312.8160621783439],
+        [2739.536652726099, -755.0688011498846],
+        [1438.2384331856933, 419.2363714080013],
+    ];
+    for solver in Solver::ALL {
+        for refine in [false, true] {
+            let got = estimate(&src, &dst, solver, refine);
+            assert!(
+                got.is_err(),
+                "{} (refine {refine}): {:?}",
+                solver.name(),
+                got
+            );
+        }
+    }
+}
