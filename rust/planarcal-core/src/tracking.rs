@@ -5,6 +5,8 @@
 //! track unseen for more than `max_missing` frames ends. Positions are in the plane's units
 //! (mm), where distances mean the same everywhere in the image.
 
+use std::collections::HashMap;
+
 use crate::Point;
 
 /// The live tracks and the association's limits.
@@ -36,16 +38,7 @@ impl Tracks {
     /// then move to this frame's positions, and those not seen age.
     pub fn update(&mut self, positions: &[Point]) -> Vec<u64> {
         let (n, m) = (positions.len(), self.ids.len());
-        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
-        for (i, p) in positions.iter().enumerate() {
-            for (j, q) in self.positions.iter().enumerate() {
-                let d = (p[0] - q[0]).hypot(p[1] - q[1]);
-                // NaN compares false: never matched.
-                if d <= self.max_jump {
-                    pairs.push((d, i, j));
-                }
-            }
-        }
+        let mut pairs = self.pairs_within_reach(positions);
         // Closest first; equal distances in object, then track, order.
         pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         let mut ids = vec![0u64; n];
@@ -86,6 +79,56 @@ impl Tracks {
         self.positions.extend_from_slice(positions);
         self.missed.resize(self.ids.len(), 0);
         ids
+    }
+
+    /// Every (distance, object, track) within max_jump. The tracks are binned in cells of
+    /// max_jump, so each object is compared with those of its cell and the 8 round it: a
+    /// frame of 10^5 objects takes milliseconds, where comparing every pair took minutes.
+    fn pairs_within_reach(&self, positions: &[Point]) -> Vec<(f64, usize, usize)> {
+        let mut pairs = Vec::new();
+        let mut consider = |i: usize, p: &Point, j: usize| {
+            let q = &self.positions[j];
+            let d = (p[0] - q[0]).hypot(p[1] - q[1]);
+            // NaN compares false: never matched.
+            if d <= self.max_jump {
+                pairs.push((d, i, j));
+            }
+        };
+        // A cell a hair wider than the reach: two points within it are in neighbouring cells
+        // whatever the rounding of the division.
+        let cell = self.max_jump * (1.0 + 1e-6);
+        if !(cell > 0.0 && cell.is_finite()) {
+            for (i, p) in positions.iter().enumerate() {
+                for j in 0..self.positions.len() {
+                    consider(i, p, j);
+                }
+            }
+            return pairs;
+        }
+        // Saturating casts: far-off coordinates share the edge cells, still compared exactly.
+        let bin = |p: &Point| ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
+        let finite = |p: &Point| p[0].is_finite() && p[1].is_finite();
+        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        for (j, q) in self.positions.iter().enumerate().filter(|(_, q)| finite(q)) {
+            grid.entry(bin(q)).or_default().push(j);
+        }
+        for (i, p) in positions.iter().enumerate().filter(|(_, p)| finite(p)) {
+            let (cx, cy) = bin(p);
+            let mut cells: Vec<(i64, i64)> = (-1..=1)
+                .flat_map(|dx| {
+                    (-1..=1).map(move |dy| (cx.saturating_add(dx), cy.saturating_add(dy)))
+                })
+                .collect();
+            // At the saturated edge neighbours repeat: compare their tracks once.
+            cells.sort_unstable();
+            cells.dedup();
+            for key in cells {
+                for &j in grid.get(&key).into_iter().flatten() {
+                    consider(i, p, j);
+                }
+            }
+        }
+        pairs
     }
 
     /// The live tracks: (ID, last position), in no particular order.
@@ -131,6 +174,52 @@ mod tests {
         assert!(t.is_empty());
         // An object that was never matched cannot take an ended track's ID.
         assert_eq!(t.update(&[[1.0, 0.0]]), vec![3]);
+    }
+
+    #[test]
+    fn the_grid_pairs_what_comparing_every_pair_does() {
+        // Brute force against the grid, on random frames with clusters, cell edges, far-off
+        // and non-finite positions; and a frame of 10^5 objects, each kept by its track
+        // (comparing every pair took minutes: benches, not this test, time it).
+        let mut rng = crate::Pcg32::new(5, 5);
+        for round in 0..200 {
+            let jump = [0.5, 3.0, 1e-300, 1e300, f64::INFINITY, 0.0][round % 6];
+            let mut frame = |n: usize| -> Vec<Point> {
+                (0..n)
+                    .map(|k| match k % 7 {
+                        0 => [f64::NAN, 1.0],
+                        1 => [1e300, -1e300],
+                        2 => [3.0 * (k / 7) as f64, 0.0], // on cell edges
+                        _ => [rng.unit() * 20.0, rng.unit() * 20.0],
+                    })
+                    .collect()
+            };
+            let (a, b) = (frame(40), frame(45));
+            let mut grid = Tracks::new(jump, 3);
+            let mut brute = grid.clone();
+            grid.update(&a);
+            brute.update(&a);
+            let mut want = Vec::new();
+            for (i, p) in b.iter().enumerate() {
+                for (j, q) in brute.positions.iter().enumerate() {
+                    let d = (p[0] - q[0]).hypot(p[1] - q[1]);
+                    if d <= jump {
+                        want.push((d, i, j));
+                    }
+                }
+            }
+            let mut got = grid.pairs_within_reach(&b);
+            let key = |x: &(f64, usize, usize)| (x.1, x.2);
+            got.sort_unstable_by_key(key);
+            want.sort_unstable_by_key(key);
+            assert_eq!(got, want, "max_jump {jump}");
+        }
+        let many: Vec<Point> = (0..100_000)
+            .map(|k| [(k % 400) as f64 * 10.0, (k / 400) as f64 * 10.0])
+            .collect();
+        let mut t = Tracks::new(5.0, 2);
+        let first = t.update(&many);
+        assert_eq!(t.update(&many), first);
     }
 
     #[test]
