@@ -76,7 +76,7 @@ fn real_ndarray<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py,
     Ok(arr)
 }
 
-/// The object as the caller would read it in a message: its repr.
+/// `repr(obj)` for a message (the type's name if even that fails).
 pub fn shown(obj: &Bound<'_, PyAny>) -> String {
     obj.repr()
         .map(|r| r.to_string())

@@ -181,7 +181,6 @@ impl RobustResult {
     }
 }
 
-/// `repr(obj)` for a message (the type's name if even that fails).
 fn method(obj: &Bound<'_, PyAny>) -> PyResult<Method> {
     if let Ok(name) = obj.cast::<PyString>() {
         match name.to_str()? {

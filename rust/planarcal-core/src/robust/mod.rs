@@ -184,7 +184,7 @@ const INITIAL_DELTA: f64 = 0.001;
 const NON_RANDOMNESS: f64 = 0.01;
 
 /// Most iterations a search may be asked for. At about a microsecond per rejected hypothesis
-/// this bounds a hopeless search to seconds; uniform sampling needs no more to draw an
+/// this bounds a hopeless search to tens of seconds; uniform sampling needs no more to draw an
 /// all-inlier sample at 3 % inliers with confidence 0.999, and the guided sampling finds
 /// structures far sparser than that in a few thousand.
 pub const MAX_ITERS: usize = 10_000_000;
