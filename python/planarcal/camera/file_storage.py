@@ -411,7 +411,11 @@ def _map_matrix(node: Any, what: str, depth: int) -> F64:
     data = _node_matrix(node.getNode("data"), what + ".data", depth).reshape(-1)
     if "sizes" in keys and not {"rows", "cols"} <= keys:
         # An !!opencv-nd-matrix (OpenCV 5 writes a vector as one): its sizes, one or two.
-        sizes = _node_matrix(node.getNode("sizes"), what + ".sizes", depth).reshape(-1)
+        sizes_node = node.getNode("sizes")
+        if sizes_node.isSeq():
+            sizes = _node_matrix(sizes_node, what + ".sizes", depth).reshape(-1)
+        else:  # XML writes a vector's one size as a number
+            sizes = np.array([_node_number(sizes_node, what + ".sizes")])
         if not (1 <= sizes.size <= 2 and all(n.is_integer() and n >= 1 for n in sizes.tolist())):
             raise IntrinsicsError(f"{what}: sizes must be one or two whole numbers >= 1")
         if int(np.prod(sizes)) != data.size:
