@@ -355,8 +355,10 @@ def test_a_client_that_never_reads_stalls_no_one(
         50,
         "-o",
         "tcp-listen://127.0.0.1:0",
+        # Room for the reader's thread to be descheduled on a loaded machine; the stuck
+        # client's 2 KB fill at once, and then its 64 lines.
         "--client-buffer",
-        8,
+        64,
     )
     server = run.server
     reader = Reader(server.port)
