@@ -35,6 +35,7 @@ from planarcal.report.drawing import draw_objects, png_bytes
 from planarcal.report.figure import require_matplotlib
 from planarcal.report.printable import (
     CHECK_BAR_MM,
+    MARGIN_MM,
     PrintLayout,
     page_refusal,
     page_size,
@@ -127,7 +128,6 @@ def _board(args: argparse.Namespace) -> CircleGridBoard:
 
 # The pages `--page auto` tries, smallest first.
 AUTO_PAGES = ("A4", "A3", "A2", "A1", "A0")
-BOARD_MARGIN_MM = 10.0
 
 
 def _cmd_board(args: argparse.Namespace) -> int:
@@ -179,7 +179,7 @@ def _board_command(args: argparse.Namespace, page: str, board: CircleGridBoard) 
     words = ["planarcal board", "-o", shlex.quote(str(args.output)), "--page", shlex.quote(page)]
     if args.orientation != "auto":
         words += ["--orientation", args.orientation]
-    if args.margin != BOARD_MARGIN_MM:
+    if args.margin != MARGIN_MM:
         words += ["--margin", f"{args.margin:g}"]
     words += ["--cols", str(board.cols), "--rows", str(board.rows), "--pitch", f"{board.pitch:g}"]
     # Sizes the user chose are kept, scaled with the pitch; unchosen ones follow it anyway.
@@ -419,8 +419,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--margin",
         type=float,
-        default=BOARD_MARGIN_MM,
-        help=f"page margin in mm ({BOARD_MARGIN_MM:g})",
+        default=MARGIN_MM,
+        help=f"page margin in mm ({MARGIN_MM:g})",
     )
     p.set_defaults(run=_cmd_board)
 

@@ -33,6 +33,7 @@ was on any failure.
 from planarcal.report.printable.layout import (
     CHECK_BAR_MM,
     CHECK_TICK_MM,
+    MARGIN_MM,
     pitch_meaning,
     smaller_board,
 )
@@ -43,6 +44,7 @@ from planarcal.report.printable.write import PrintLayout, page_refusal, write_bo
 __all__ = [
     "CHECK_BAR_MM",
     "CHECK_TICK_MM",
+    "MARGIN_MM",
     "PAGE_SIZES",
     "PT_PER_MM",
     "Orientation",

@@ -32,6 +32,9 @@ from planarcal.report.printable.shapes import (
 CHECK_BAR_MM = 100.0
 """Length of the printed check bar in mm."""
 
+MARGIN_MM = 10.0
+"""The page margin a board is printed within unless told otherwise, in mm."""
+
 
 CHECK_TICK_MM = 10.0
 """Spacing of the check bar's ticks in mm."""

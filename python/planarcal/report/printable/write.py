@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from planarcal.calib.board import CircleGridBoard
 from planarcal.errors import ArgumentError, BoardError
 from planarcal.files import atomic_write
-from planarcal.report.printable.layout import CHECK_BAR_MM, fit, in_words, refusal
+from planarcal.report.printable.layout import CHECK_BAR_MM, MARGIN_MM, fit, in_words, refusal
 from planarcal.report.printable.pages import Orientation, num, parse_page
 from planarcal.report.printable.pdf import PT_PER_MM, pdf_bytes
 from planarcal.report.printable.shapes import Box
@@ -84,7 +84,7 @@ def write_board(
     *,
     page: str | Sequence[float] = "A4",
     orientation: Orientation = "auto",
-    margin_mm: float = 10.0,
+    margin_mm: float = MARGIN_MM,
 ) -> PrintLayout:
     """Write ``board`` to ``path`` as a printable page at exact scale; returns the layout.
 
@@ -172,7 +172,7 @@ def page_refusal(
     page: str | Sequence[float] = "A4",
     *,
     orientation: Orientation = "auto",
-    margin_mm: float = 10.0,
+    margin_mm: float = MARGIN_MM,
     offer: Callable[[CircleGridBoard], str] = in_words,
 ) -> str | None:
     """None when ``board`` fits the page as ``write_board`` lays it out (same arguments),
