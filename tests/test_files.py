@@ -1,8 +1,10 @@
 """planarcal.files.atomic_write, and every writer of planarcal built on it, on real files: the
 permissions a new file gets under the umask and those a replaced file keeps; the anonymous
 temporary file (Linux's O_TMPFILE) and the named one used where it is refused; temporary files
-that dead writers left; failures that leave the old file and nothing else. What a SIGKILL
-mid-save leaves is in test_killed_save.py."""
+that dead writers left; failures that leave the old file and nothing else; symlinks followed
+and kept, FIFOs and character devices (/dev/null, /dev/stdout) written as streams, never
+replaced, and what cannot be written refused. What a SIGKILL mid-save leaves is in
+test_killed_save.py."""
 
 from __future__ import annotations
 
@@ -10,6 +12,11 @@ import contextlib
 import errno
 import os
 import re
+import socket
+import stat
+import subprocess
+import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -100,17 +107,148 @@ def test_a_replaced_file_keeps_its_permissions(
     assert names(tmp_path) == ["calib.json"]
 
 
-def test_a_symlink_replaced_gives_no_permissions_of_its_own(tmp_path: Path) -> None:
-    # A symlink's own bits mean nothing; the file it pointed to is not touched.
-    pointed_to = tmp_path / "elsewhere.json"
-    pointed_to.write_bytes(b"elsewhere")
+def test_a_symlink_keeps_pointing_to_its_target_saved_atomically(
+    tmp_path: Path, temporary_kind: str
+) -> None:
+    # It used to be replaced by a regular file: the link gone, its target left stale.
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    pointed_to = elsewhere / "calib.json"
+    pointed_to.write_bytes(b"old")
     pointed_to.chmod(0o600)
+    old_inode = pointed_to.stat().st_ino
     link = tmp_path / "calib.json"
-    link.symlink_to(pointed_to)
+    link.symlink_to(Path("elsewhere") / "calib.json")  # relative to the link's directory
+    chained = tmp_path / "current.json"
+    chained.symlink_to(link.name)
     with umask(0o022):
-        atomic_write(link, b"new")
-    assert not link.is_symlink() and link.read_bytes() == b"new" and mode(link) == 0o644
-    assert pointed_to.read_bytes() == b"elsewhere" and mode(pointed_to) == 0o600
+        assert atomic_write(chained, b"new") == chained
+    assert chained.is_symlink() and link.is_symlink()
+    assert os.readlink(chained) == "calib.json"
+    assert os.readlink(link) == os.path.join("elsewhere", "calib.json")
+    # Replaced (a new inode, renamed in), keeping its own permissions.
+    assert pointed_to.read_bytes() == b"new" and mode(pointed_to) == 0o600
+    assert pointed_to.stat().st_ino != old_inode
+    assert names(tmp_path) == ["calib.json", "current.json", "elsewhere"]
+    assert names(elsewhere) == ["calib.json"]
+
+
+def test_a_dangling_symlink_gets_its_target_created(tmp_path: Path, temporary_kind: str) -> None:
+    link = tmp_path / "calib.json"
+    link.symlink_to(tmp_path / "versions" / "v2.json")
+    with pytest.raises(FileNotFoundError, match="no directory") as caught:
+        atomic_write(link, "{}")
+    assert caught.value.filename == str(link) and link.is_symlink()
+    (tmp_path / "versions").mkdir()
+    with umask(0o022):
+        atomic_write(link, "{}")
+    assert link.is_symlink() and link.read_text() == "{}"
+    assert mode(tmp_path / "versions" / "v2.json") == 0o644
+
+
+def test_a_symlink_loop_is_named(tmp_path: Path) -> None:
+    (tmp_path / "a").symlink_to("b")
+    (tmp_path / "b").symlink_to("a")
+    with pytest.raises(OSError, match="cannot write") as caught:
+        atomic_write(tmp_path / "a", "{}")
+    assert caught.value.errno == errno.ELOOP and caught.value.filename == str(tmp_path / "a")
+    assert (tmp_path / "a").is_symlink() and (tmp_path / "b").is_symlink()
+
+
+@pytest.mark.parametrize("through_link", [False, True], ids=["fifo", "link to a fifo"])
+def test_a_fifo_is_written_as_a_stream(tmp_path: Path, through_link: bool) -> None:
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    received: list[bytes] = []
+
+    def read_all() -> None:
+        with open(fifo, "rb") as f:
+            received.append(f.read())
+
+    reader = threading.Thread(target=read_all, daemon=True)
+    reader.start()
+    path = tmp_path / "calib.json" if through_link else fifo
+    if through_link:
+        path.symlink_to(fifo)
+    payload = b"x" * 300_000  # more than a pipe holds: the reader drains it meanwhile
+    atomic_write(path, payload)
+    reader.join(timeout=60)
+    assert received == [payload]
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert not [n for n in names(tmp_path) if TEMPORARY.fullmatch(n)]
+
+
+def assert_still_null_device(path: Path, before: os.stat_result) -> None:
+    after = os.lstat(path)
+    assert stat.S_ISCHR(after.st_mode), path
+    assert (after.st_ino, after.st_rdev) == (before.st_ino, before.st_rdev)
+
+
+def test_a_character_device_is_written_never_replaced(tmp_path: Path) -> None:
+    """A null device node made here first: the system's /dev/null is tried only once the
+    same write has left a private one a device (the old code replaced it with a file)."""
+    if not hasattr(os, "mknod") or os.geteuid() != 0:
+        pytest.skip("making a device node needs root")
+    private = tmp_path / "null"
+    os.mknod(private, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    before = os.lstat(private)
+    atomic_write(private, b"calibration")
+    assert_still_null_device(private, before)
+    link = tmp_path / "calib.json"
+    link.symlink_to(private)
+    atomic_write(link, b"calibration")
+    assert_still_null_device(private, before)
+    assert link.is_symlink()
+    system = Path("/dev/null")
+    before = os.lstat(system)
+    atomic_write(system, b"calibration")
+    assert_still_null_device(system, before)
+    assert not [n for n in names(Path("/dev")) if TEMPORARY.fullmatch(n)]
+
+
+@pytest.mark.parametrize("appended", [False, True], ids=[">", ">>"])
+def test_dev_stdout_writes_to_the_processs_output(tmp_path: Path, appended: bool) -> None:
+    """``-o /dev/stdout`` (a link through /proc to fd 1) writes to whatever fd 1 is: a pipe,
+    or a file the shell opened, added to rather than replaced."""
+    code = "import sys; from planarcal.files import atomic_write; atomic_write(sys.argv[1], 'new')"
+    # A private link first: the system's /dev/stdout is tried only once that one worked (the
+    # old code replaced the link with a file).
+    private = tmp_path / "stdout"
+    private.symlink_to("/proc/self/fd/1")
+    for path in (private, Path("/dev/stdout")):
+        piped = subprocess.run([sys.executable, "-c", code, path], capture_output=True)
+        assert (piped.returncode, piped.stdout) == (0, b"new"), piped.stderr
+        assert path.is_symlink()
+    private.unlink()
+    out = tmp_path / "out.txt"
+    out.write_bytes(b"before|")
+    with open(out, "ab" if appended else "wb") as f:
+        subprocess.run([sys.executable, "-c", code, "/dev/fd/1"], stdout=f, check=True)
+    assert out.read_bytes() == (b"before|new" if appended else b"new")
+    assert names(tmp_path) == ["out.txt"]
+
+
+def test_what_cannot_be_written_is_refused_and_left(tmp_path: Path) -> None:
+    directory = tmp_path / "report"
+    directory.mkdir()
+    with pytest.raises(IsADirectoryError, match="a directory") as refused:
+        atomic_write(directory, "{}")
+    assert refused.value.filename == str(directory) and directory.is_dir()
+    sock_path = tmp_path / "sock"
+    with socket.socket(socket.AF_UNIX) as sock:
+        sock.bind(str(sock_path))
+        with pytest.raises(OSError, match="a socket"):
+            atomic_write(sock_path, "{}")
+    assert stat.S_ISSOCK(os.lstat(sock_path).st_mode)
+    if hasattr(os, "mknod") and os.geteuid() == 0:
+        disk = tmp_path / "disk"
+        os.mknod(disk, 0o600 | stat.S_IFBLK, os.makedev(7, 0))  # a loop device's numbers
+        link = tmp_path / "calib.json"
+        link.symlink_to(disk)
+        with pytest.raises(OSError, match="a block device") as caught:
+            atomic_write(link, "{}")
+        assert caught.value.filename == str(link)
+        assert stat.S_ISBLK(os.lstat(disk).st_mode) and link.is_symlink()
 
 
 def test_the_content_is_nameless_until_complete_on_linux(
@@ -380,3 +518,15 @@ def test_every_writer_keeps_a_replaced_files_permissions(
         assert mode(path) == 0o640, path
         if path.name != "positions.jsonl":  # the others are new files under the old names
             assert path.stat().st_ino != before[path], path
+
+
+def test_a_calibration_saved_to_dev_null_leaves_it_a_device(
+    inputs: dict[str, Any], tmp_path: Path
+) -> None:
+    if not hasattr(os, "mknod") or os.geteuid() != 0:
+        pytest.skip("making a device node needs root")
+    private = tmp_path / "null"
+    os.mknod(private, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    before = os.lstat(private)
+    inputs["cal"].save(private)
+    assert_still_null_device(private, before)

@@ -9,7 +9,20 @@ and on disk is it linked in under a temporary name and at once renamed over the 
 the target is written instead. A process killed while writing that one leaves it behind (as
 every save did before anonymous files were used), and one killed in the tens of microseconds
 between the link and the rename leaves the complete content under the temporary name; so
-each save first removes the temporary files of its own target untouched for a minute."""
+each save first removes the temporary files of its own target untouched for a minute.
+
+What is at the path decides how it is written:
+
+- nothing, or a regular file: the atomic save above;
+- a symbolic link (or a chain of them): the file it points to is saved atomically in its own
+  directory, and the link stays a link; a dangling link gets its target created, if the
+  target's directory exists;
+- a FIFO or a character device (``/dev/null``, a terminal), or a link through ``/proc``
+  (``/dev/stdout``, ``/dev/fd/1``, which name a process's open file): written directly, in
+  place, as a stream is (not atomically: a stream has no previous content to keep, and the
+  node itself is never replaced). Opening a FIFO waits for its reader, as any writer would;
+- a directory, a block device or a socket: refused (``OSError`` naming what it is), never
+  replaced or written."""
 
 from __future__ import annotations
 
@@ -22,6 +35,8 @@ import stat
 import time
 from collections.abc import Iterator
 from pathlib import Path
+
+from planarcal.bounded_read import file_kind
 
 # Write only, created here or not at all (no race with another writer's temporary file).
 _FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
@@ -37,39 +52,62 @@ _ANONYMOUS_REFUSED = frozenset({errno.EOPNOTSUPP, errno.ENOTSUP, errno.EISDIR, e
 # and renames it within milliseconds. Generous, so that a slow disk never loses a save.
 STALE_TEMPORARY_S = 60.0
 _TOKEN_HEX = 12  # secrets.token_hex(6)
+# The kernel's own limit on the links followed in one path (Linux's MAXSYMLINKS).
+_MAX_LINKS = 40
+# A direct write never creates or truncates: the stream is there, and has no content to keep.
+# O_APPEND: a regular file reached through /proc (a shell's `>> log`) is added to, not
+# overwritten from its start; streams ignore it.
+_STREAM_FLAGS = os.O_WRONLY | os.O_APPEND | getattr(os, "O_BINARY", 0)
 
 
 def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> Path:
     """Writes `data` (text as UTF-8) to `path`: the file appears complete, flushed to disk,
     or not at all, and nothing else is left in the directory. A new file gets the permissions
     a plain open() would give (0o666 less the umask); a file replaced keeps its permission
-    bits. Raises OSError of the errno's subclass, its ``filename`` the path, when it cannot be
-    written."""
+    bits. A symlink's target is saved and the link kept; a FIFO or a character device is
+    written directly; a directory, a block device or a socket is refused (see the module's
+    docstring). Raises OSError of the errno's subclass, its ``filename`` the path, when it
+    cannot be written."""
     target = Path(path)
     payload = data.encode("utf-8") if isinstance(data, str) else data
-    directory = target.parent if str(target.parent) else Path(".")
+    try:
+        resolved, stream = _resolve_links(target)
+        info = _stat_or_none(resolved, follow=stream)
+    except OSError as e:
+        raise OSError(e.errno, f"cannot write ({e.strerror or e})", str(target)) from None
+    if stream or (info is not None and not stat.S_ISREG(info.st_mode)):
+        _write_in_place(target, resolved, info, payload)
+    else:
+        _replace_atomically(target, resolved, payload)
+    return target
+
+
+def _replace_atomically(target: Path, resolved: Path, payload: bytes) -> None:
+    """Saves `payload` as the regular file (or new file) `resolved`, which `target` names
+    (itself, or through symlinks)."""
+    directory = resolved.parent if str(resolved.parent) else Path(".")
     if not directory.is_dir():
         raise FileNotFoundError(
             errno.ENOENT, f"cannot write (no directory {str(directory)!r})", str(target)
         )
-    remove_stale_temporaries(target)
+    remove_stale_temporaries(resolved)
     tmp: Path | None = None
     try:
-        mode = _mode_to_keep(target)
+        mode = _mode_to_keep(resolved)
         fd = _open_anonymous(directory)
         if fd is None:
-            fd, tmp = _create_temporary(target, directory)
+            fd, tmp = _create_temporary(resolved, directory)
         try:
             _write_all(fd, payload)
             if mode is not None:
                 _set_mode(fd, tmp, mode)
             os.fsync(fd)
             if tmp is None:
-                _replace_with_anonymous(fd, target, directory)
+                _replace_with_anonymous(fd, resolved, directory)
         finally:
             os.close(fd)
         if tmp is not None:
-            os.replace(tmp, target)
+            os.replace(tmp, resolved)
             tmp = None
         _sync_directory(directory)
     except OSError as e:
@@ -79,7 +117,58 @@ def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> Path:
         if tmp is not None:
             with contextlib.suppress(OSError):  # it vanished, or the directory did
                 os.unlink(tmp)
-    return target
+
+
+def _write_in_place(
+    target: Path, resolved: Path, info: os.stat_result | None, payload: bytes
+) -> None:
+    """Writes `payload` straight into the stream `resolved` (a FIFO, a character device, a
+    file named through /proc), which `target` names; refuses what must not be written."""
+    kind = info.st_mode if info is not None else 0
+    if info is None or not (stat.S_ISFIFO(kind) or stat.S_ISCHR(kind) or stat.S_ISREG(kind)):
+        what = file_kind(kind) if info is not None else "not there"
+        code = errno.EISDIR if stat.S_ISDIR(kind) else errno.EINVAL
+        raise OSError(code, f"cannot write: it is {what}, which is never replaced", str(target))
+    try:
+        fd = os.open(resolved, _STREAM_FLAGS | _CLOEXEC)
+        try:
+            _write_all(fd, payload)
+            if stat.S_ISREG(os.fstat(fd).st_mode):
+                os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError as e:
+        raise OSError(e.errno, f"cannot write ({e.strerror or e})", str(target)) from None
+
+
+def _resolve_links(target: Path) -> tuple[Path, bool]:
+    """The path `target` leads to once the symlinks of its last component are followed, and
+    whether that path is a stream: a link inside /proc (``/dev/stdout`` leads to
+    ``/proc/self/fd/1``) names an open file, not a place a file can be saved, so it is not
+    followed further. Raises OSError (ELOOP) for a loop or too long a chain."""
+    path = target
+    for _ in range(_MAX_LINKS):
+        info = _stat_or_none(path, follow=False)
+        if info is None or not stat.S_ISLNK(info.st_mode):
+            return path, False
+        if _inside_proc(path):
+            return path, True
+        path = path.parent / os.readlink(path)  # an absolute link replaces the parent
+    raise OSError(errno.ELOOP, os.strerror(errno.ELOOP), str(target))
+
+
+def _inside_proc(path: Path) -> bool:
+    """Whether `path`'s directory is in Linux's /proc (whose links name open files)."""
+    directory = os.path.realpath(path.parent if str(path.parent) else ".")
+    return directory == "/proc" or directory.startswith("/proc/")
+
+
+def _stat_or_none(path: Path, follow: bool) -> os.stat_result | None:
+    """`path`'s status (following a last symlink or not), or None if nothing is there."""
+    try:
+        return os.stat(path, follow_symlinks=follow)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
 
 
 def temporary_name_pattern(target: str | os.PathLike[str]) -> re.Pattern[str]:
