@@ -7,6 +7,9 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -120,6 +123,61 @@ def test_bad_templates_are_refused_when_compiled(template: str, message: str) ->
     with pytest.raises(LineFormatError, match=message) as info:
         line_format(template=template)
     assert isinstance(info.value, OutputError) and isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize(
+    ("template", "message"),
+    [
+        ("{id},{area:,.0f}", r"field area \(\{area:,.0f\}\) can render a comma.*'1,147'.*grouping"),
+        ("{id:,d}", r"field id \(\{id:,d\}\) can render a comma"),
+        ("{t:,.6f}", r"field t .* can render a comma"),
+        ("{x:,>12.3f}", r"field x .*can render a comma.*another fill character"),
+        (
+            "{coords:,^9}",
+            r"field coords .*can render a comma.*: coords = 'board' gives ',,board,,'",
+        ),
+        ("{id:c}", r"field id \(\{id:c\}\) can render a line break \('\\n'\).*'d' type"),
+        ("{x:n}", r"\{x:n\}: the 'n' type follows the locale"),
+        ("{id}\x0b{x}", "line break"),
+        ("{x:\u2028>9}", "line break"),
+    ],
+)
+def test_templates_that_can_render_the_separator_are_refused_naming_the_field(
+    template: str, message: str
+) -> None:
+    with pytest.raises(LineFormatError, match=message):
+        line_format(template=template)
+
+
+def test_fields_that_cannot_render_the_separator_are_accepted() -> None:
+    fmt = line_format(template="{id:03d},{x:+.3f},{area:_.0f},{y:>12.2f},{coords!r},{std:.2e}")
+    line = fmt.frame(frame(1))
+    assert line.count(",") == 3 + 6  # the head's separators, then the template's own five
+
+
+def test_run_refuses_a_template_that_can_render_a_comma_at_start_up(tmp_path: Path) -> None:
+    # Neither the calibration nor the source exist: the template is refused before both.
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "planarcal",
+            "run",
+            "--source",
+            str(tmp_path / "none.avi"),
+            "--calibration",
+            str(tmp_path / "none.json"),
+            "--template",
+            "{id},{x:.2f},{area:,.0f}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode != 0 and done.stdout == ""
+    assert "field area ({area:,.0f}) can render a comma" in done.stderr, done.stderr
+    assert "none.avi" not in done.stderr and "none.json" not in done.stderr
 
 
 def test_format_and_template_must_agree() -> None:

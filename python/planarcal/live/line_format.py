@@ -31,7 +31,13 @@ frame of reference of x, y and angle), n (int, objects in the frame), id (int, s
 the part stays in view), x, y (float, mm in that frame), std (float, mm, the 1-sigma
 uncertainty of x, y), angle (float, degrees in [-90, 90) in that frame), px, py (float, the
 centroid in the image, px), area (float, px^2). A template is checked when it is compiled
-(at start-up): an unknown field (``{xx}``) raises ``LineFormatError`` listing the fields.
+(at start-up): an unknown field (``{xx}``) raises ``LineFormatError`` listing the fields, and
+so does a field whose rendering could contain the line's separator (a comma) or a line
+break, which would shift every later field of the line or split it: the ``,`` grouping
+option (``{area:,.0f}`` gives ``1,147``), a comma as the fill character (``{x:,>10}``), the
+``c`` type (``{id:c}`` turns ID 44 into a comma), and the ``n`` type (its grouping and
+decimal mark follow the locale). Each field is rendered with large, small, negative and
+non-finite values of its type to find out.
 
 A part too round for an axis has no angle: ``nan`` in csv and templates (Python's rendering
 of NaN under any float spec), null in JSON. A controller's number parser rejects ``nan``
@@ -79,6 +85,22 @@ _FRAME_FIELDS = ("frame", "t", "coords", "n")
 _OBJECT_FIELDS = ("id", "x", "y", "std", "angle", "px", "py", "area")
 FIELDS = _FRAME_FIELDS + _OBJECT_FIELDS
 """The names a template may use."""
+
+SEPARATOR = ","
+"""What separates the fields of a csv or template line."""
+
+LINE_BREAKS = "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"
+"""Characters that end a line for some reader (str.splitlines breaks at each of them)."""
+
+_INT_FIELDS = ("frame", "n", "id")
+_STR_FIELDS = ("coords",)
+# What each field's type is tried with: a separator or a line break in any rendering, or a
+# failure, refuses the template (44 and 10 are a comma's and a newline's code points).
+_PROBES: dict[str, tuple[Any, ...]] = {
+    "int": (0, 7, 10, 13, 44, 1147, -1234567, 2**53),
+    "float": (0.0, 1147.0, -1234567.891, 1e21, 1e-7, math.nan, math.inf, -math.inf),
+    "str": ("board", "robot"),
+}
 
 
 class LineFormatError(OutputError):
@@ -178,7 +200,7 @@ class _Compiled:
     def __init__(self, template: str, allowed: tuple[str, ...]) -> None:
         if not isinstance(template, str) or not template.strip():
             raise LineFormatError("a template must be a non-empty string")
-        if "\n" in template or "\r" in template:
+        if any(c in LINE_BREAKS for c in template):
             raise LineFormatError(f"template {template!r}: a line break would split the line")
         fields: list[str] = []
         out: list[str] = []
@@ -206,6 +228,7 @@ class _Compiled:
                     f"to {MAX_SPEC_NUMBER}"
                 )
             conv = f"!{conversion}" if conversion else ""
+            _check_field(template, name, conv, spec or "")
             out.append("{" + str(fields.index(name)) + conv + (f":{spec}" if spec else "") + "}")
         self.source = template
         self.text = "".join(out)
@@ -213,6 +236,61 @@ class _Compiled:
 
     def render_one(self, values: dict[str, Any]) -> str:
         return self.text.format(*(values[f] for f in self.fields))
+
+
+def _check_field(template: str, name: str, conv: str, spec: str) -> None:
+    """Raises LineFormatError naming the field when ``{name<conv>:<spec>}`` can render the
+    separator or a line break (or fails) for some value of the field's type. A spec that
+    does not suit the type at all is left to the dummy frame's check, which says so."""
+    field = "{" + name + conv + (f":{spec}" if spec else "") + "}"
+    if spec.endswith("n"):
+        raise LineFormatError(
+            f"template {template!r}: {field}: the 'n' type follows the locale, whose digit "
+            f"grouping or decimal mark may be {SEPARATOR!r}, the separator of the line's "
+            "fields; use 'd', 'f' or 'g'"
+        )
+    kind = "int" if name in _INT_FIELDS else "str" if name in _STR_FIELDS else "float"
+    text = "{0" + conv + (f":{spec}" if spec else "") + "}"
+    for value in _PROBES[kind]:
+        try:
+            rendered = text.format(value)
+        except (ValueError, TypeError, OverflowError) as e:
+            if value == _PROBES[kind][0] and not isinstance(e, OverflowError):
+                return  # the spec does not suit the type: the dummy frame's check says so
+            raise LineFormatError(
+                f"template {template!r}: {field} cannot render {name} = {value!r}: {e}"
+            ) from None
+        bad = next((c for c in rendered if c == SEPARATOR or c in LINE_BREAKS), None)
+        if bad is not None:
+            what = (
+                "a comma, the separator of the line's fields, so a parser would split it in two"
+                if bad == SEPARATOR
+                else f"a line break ({bad!r}), which would split the line"
+            )
+            raise LineFormatError(
+                f"template {template!r}: field {name} ({field}) can render {what}: "
+                f"{name} = {value!r} gives {rendered!r}; {_advice(spec)}"
+            )
+
+
+_SPEC = re.compile(
+    r"(?:(?P<fill>.)?[<>=^])?[-+ ]?z?#?0?\d*(?P<grouping>[,_])?(?:\.\d+)?(?P<type>.)?"
+)
+"""Python's format spec mini-language, as far as the advice below needs it."""
+
+
+def _advice(spec: str) -> str:
+    """How to mend a field spec that can render a separator or a line break."""
+    match = _SPEC.fullmatch(spec)
+    parts = [] if match is None else [match["fill"], match["grouping"], match["type"]]
+    fill, grouping, kind = parts or [None, None, None]
+    if kind == "c":
+        return "use the 'd' type for a number"
+    if grouping == SEPARATOR:
+        return "drop the ',' digit grouping (or use '_')"
+    if fill is not None and fill == SEPARATOR:
+        return "choose another fill character"
+    return "choose another format spec"
 
 
 def _columns(
