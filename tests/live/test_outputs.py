@@ -196,6 +196,8 @@ def test_tcp_reader_that_stops_reading_never_stalls_the_sender(
     s = out.stats
     assert s.connected and s.errors == 0
     assert s.dropped > n // 2  # the kernel's buffers hold a few thousand lines at most
+    # Connected all along: every loss was a line pushed out of the full buffer.
+    assert s.dropped_full_buffer == s.dropped and s.dropped_write_failed == 0
     assert s.pending <= 256 + 64 * 1024 // 200
     assert s.sent + s.dropped + s.pending == n
     began = time.monotonic()
@@ -321,6 +323,7 @@ def test_tcp_without_a_controller_drops_quickly_and_keeps_trying(outputs: list[O
     s = out.stats
     assert not s.connected
     assert (s.sent, s.dropped, s.reconnects) == (0, n, 0)
+    assert (s.dropped_write_failed, s.dropped_full_buffer) == (n, 0)  # never connected
     assert s.errors >= 3
     assert "refused" in (s.last_error or "").lower()
     assert "not connected" in out.describe()
@@ -579,9 +582,14 @@ def test_stdout_whose_reader_exits_counts_drops_instead_of_crashing() -> None:
     assert child.wait(timeout=60) == 0, err
     assert json.loads(first) == {"frame": 0}
     assert "Traceback" not in err and "Exception ignored" not in err, err
-    sent, dropped, errors, broken, refused = json.loads(err)
+    # The loss is reported as it happens (Python's last-resort handler: stderr): the first
+    # line lost at once, the rest at close (10 s apart at most), not a warning per line.
+    *warnings, summary = err.splitlines()
+    sent, dropped, errors, broken, refused = json.loads(summary)
     assert broken and errors == 1
     assert sent + dropped == 100_000 and refused == dropped > 0
+    assert warnings[0].startswith("stdout: 1 line lost: the reader of stdout has gone")
+    assert 2 <= len(warnings) < 10 and f"({dropped:,} in all: {dropped:,} not written" in err
 
 
 # --- specs and lines ---

@@ -1,6 +1,6 @@
 """``ServerOutput``: planarcal as the server (``-o tcp-listen://HOST:PORT``). Controllers
-connect to it, as many as they like, whenever they like, and read whole lines: the stream of
-every frame, or (trigger mode) one answer per request.
+connect to it (up to ``max_clients`` at once), whenever they like, and read whole lines: the
+stream of every frame, or (trigger mode) one answer per request.
 
 One background thread owns every socket (a selector over the listener, the clients and a
 wake-up pipe; all non-blocking), like ``TcpOutput``'s writer, so the loop only appends lines
@@ -46,6 +46,16 @@ MAX_OWED_REPLIES = 64
 # Clients that have left and are still listed in the stats (the totals count them all).
 _GONE_KEPT = 16
 
+IDLE_TIMEOUT_S = 600.0
+"""Trigger mode: a client that sends no request for this long is closed (``idle_timeout``).
+Longer than a controller's pauses between parts (seconds) or batches (minutes); short
+enough that a controller that vanished without closing (a power cut, a reboot) frees its
+place in minutes, not at TCP keep-alive's two hours."""
+
+EVICT_IDLE_S = 10.0
+"""Trigger mode, at ``max_clients``: a new connection takes the place of the client idle
+longest, if it has been idle at least this long (or ``idle_timeout``, if shorter)."""
+
 # How often the fault check runs while requests wait for a frame, s.
 _FAULT_POLL_S = 0.1
 
@@ -68,14 +78,16 @@ class _Client:
     (under the server's lock); its socket is the selector thread's alone."""
 
     __slots__ = (
+        "active",
         "answers",
         "batch",
         "bytes",
         "closed_by",
         "discarding",
-        "dropped",
         "eof",
         "error_lines",
+        "failed",
+        "full",
         "idle",
         "inbuf",
         "interest",
@@ -105,16 +117,26 @@ class _Client:
         self.eof = False
         """The client closed its side: no more requests; it leaves once its lines are out."""
         self.interest = 0
-        self.sent = self.dropped = self.bytes = 0
+        self.active = time.monotonic()
+        """When the client last did something (connected, sent a line): for the idle
+        timeout and for choosing whom to evict."""
+        self.sent = self.full = self.failed = self.bytes = 0
         self.n_requests = self.answers = self.error_lines = 0
         self.closed_by: str | None = None
+
+    @property
+    def owes(self) -> bool:
+        """Something is owed to it or on its way: a reply, a queued or half-written line."""
+        return bool(self.requests) or self.batch is not None or bool(len(self.queue))
 
     def stats(self) -> ClientStats:
         return ClientStats(
             self.peer,
             self.closed_by is None,
             self.sent,
-            self.dropped,
+            self.full + self.failed,
+            self.full,
+            self.failed,
             self.n_requests,
             self.answers,
             self.error_lines,
@@ -157,7 +179,16 @@ class ServerOutput(Output):
     frame lines of the answers are made (``make_line``) only when a request waits: between
     triggers the loop formats nothing.
 
-    ``max_clients`` connections at most: one more gets an error line and is closed.
+    ``max_clients`` connections at most. In trigger mode a client is idle while it owes
+    nothing and has sent no line: one idle for ``idle_timeout`` seconds (None: never) gets
+    an error line and is closed, and at ``max_clients`` a new connection takes the place of
+    the client idle longest (it too gets an error line saying why), provided that one has
+    been idle for ``EVICT_IDLE_S`` (or ``idle_timeout``, if shorter): a controller that
+    restarts gets in even while its old connection, dead without a goodbye, still holds a
+    place. Otherwise (and always in stream mode, where a client that stops reading is reset
+    by ``stall_timeout``) the new connection gets an error line and is closed. Refusals,
+    evictions, idle closes, resets and lost lines are reported on the
+    ``planarcal.live.outputs`` logger while they happen (rate-limited).
 
     ``close`` answers waiting requests with an error, writes what is queued for up to
     ``flush_timeout`` seconds, closes every connection and the listener."""
@@ -172,6 +203,7 @@ class ServerOutput(Output):
         error_line: Callable[[str], str] | None = None,
         fault: Callable[[], str | None] | None = None,
         max_clients: int = 32,
+        idle_timeout: float | None = IDLE_TIMEOUT_S,
         max_pending_lines: int = 256,
         max_pending_bytes: int = 1 << 20,
         stall_timeout: float | None = 5.0,
@@ -193,6 +225,7 @@ class ServerOutput(Output):
         for name, seconds in (
             ("trigger_timeout", trigger_timeout),
             ("stall_timeout", stall_timeout),
+            ("idle_timeout", idle_timeout),
         ):
             if seconds is not None and not (isinstance(seconds, int | float) and seconds > 0):
                 raise OutputError(f"{name} must be a positive number of seconds, not {seconds}")
@@ -210,6 +243,8 @@ class ServerOutput(Output):
         self._error_line = error_line or _plain_error_line
         self._fault = fault
         self._max_clients = max_clients
+        self._idle_timeout = idle_timeout
+        self._evict_idle = EVICT_IDLE_S if idle_timeout is None else min(EVICT_IDLE_S, idle_timeout)
         self._max_lines = max_pending_lines
         self._max_bytes = max_pending_bytes
         self._stall_timeout = stall_timeout
@@ -227,7 +262,7 @@ class ServerOutput(Output):
         self._waiting = 0  # requests of all clients waiting for a frame
         self._stop = False
         self._stop_deadline = 0.0
-        self._accepted = self._refused = 0
+        self._accepted = self._refused = self._evicted = self._idle_closed = 0
         self._lines = self._unheard = 0
         self._requests = self._answers = self._error_lines = 0
 
@@ -284,7 +319,9 @@ class ServerOutput(Output):
             clients = self._clients
             return ServerStats(
                 sent=self._n_sent,
-                dropped=self._n_dropped,
+                dropped=self._n_full + self._n_failed,
+                dropped_full_buffer=self._n_full,
+                dropped_write_failed=self._n_failed,
                 bytes_sent=self._n_bytes,
                 errors=self._n_errors,
                 reconnects=0,
@@ -297,6 +334,8 @@ class ServerOutput(Output):
                 clients=len(clients),
                 accepted=self._accepted,
                 refused=self._refused,
+                evicted=self._evicted,
+                idle_closed=self._idle_closed,
                 lines=self._lines,
                 unheard=self._unheard,
                 requests=self._requests,
@@ -314,7 +353,7 @@ class ServerOutput(Output):
     def _send(self, data: bytes) -> bool:
         with self._lock:
             if self._closing:
-                return self._drop()
+                return self._drop(cause=f"a line sent after {self.spec} was closed")
             self._lines += 1
             listeners = [c for c in self._clients if not c.eof]
             if not listeners:
@@ -379,15 +418,20 @@ class ServerOutput(Output):
         """Queues a line for a client (under the lock); True if the selector thread must be
         woken for it."""
         if len(data) > self._max_bytes:
-            client.dropped += 1
+            client.failed += 1
             self._drop(
                 f"a line of {len(data):,} bytes is larger than max_pending_bytes "
                 f"({self._max_bytes:,}); dropped"
             )
             return False
         pushed_out = client.queue.push(data)
-        client.dropped += pushed_out
-        self._n_dropped += pushed_out
+        if pushed_out:
+            client.full += pushed_out
+            self._lose(
+                pushed_out,
+                full_buffer=True,
+                cause=f"{client.peer} reads more slowly than lines come: its oldest are dropped",
+            )
         wake, client.idle = client.idle, False
         return wake
 
@@ -446,6 +490,15 @@ class ServerOutput(Output):
                 self._listener.close()
             selector.close()
 
+    def _idle_until(self, client: _Client) -> float | None:
+        """Trigger mode: when the client's idle timeout runs out (monotonic), if it is idle
+        (it owes nothing, and has not closed its side); None otherwise."""
+        if self.trigger_word is None or self._idle_timeout is None:
+            return None
+        if client.owes or client.eof or client.closed_by is not None:
+            return None
+        return client.active + self._idle_timeout
+
     def _flushed(self) -> bool:
         """True when every queued line is written, or close()'s flush time has run out."""
         if time.monotonic() >= self._stop_deadline:
@@ -463,6 +516,9 @@ class ServerOutput(Output):
                 if client.batch is not None and self._stall_timeout is not None:
                     limits.append(client.last_progress + self._stall_timeout)
                 limits.extend(r.deadline for r in client.requests if r.data is None)
+                idle_until = self._idle_until(client)
+                if idle_until is not None:
+                    limits.append(idle_until)
             if self._waiting and self._fault is not None:
                 limits.append(now + _FAULT_POLL_S)
         if stopping:
@@ -482,19 +538,8 @@ class ServerOutput(Output):
                 return
             peer = _peer_name(address)
             sock.setblocking(False)
-            with self._lock:
-                full = len(self._clients) >= self._max_clients
-                if full:
-                    self._refused += 1
-                    self._error_lines += 1
-            if full:
-                line = self._error_line(
-                    f"{self._max_clients} controllers are connected already, the most this "
-                    "server takes; try again later"
-                )
-                with contextlib.suppress(OSError):
-                    sock.send(encode_line(line))
-                close_socket(sock, abort=False)
+            if not self._make_room(selector, peer):
+                self._refuse(sock, peer)
                 continue
             configure_socket(sock, send_buffer=self._send_buffer, stall_timeout=self._stall_timeout)
             client = _Client(sock, peer, LineQueue(self._max_lines, self._max_bytes))
@@ -502,6 +547,66 @@ class ServerOutput(Output):
                 self._clients.append(client)
                 self._accepted += 1
             self._set_interest(selector, client, selectors.EVENT_READ)
+
+    def _make_room(self, selector: selectors.BaseSelector, newcomer: str) -> bool:
+        """True when a new client may come in: below max_clients, or (trigger mode) after
+        the client idle longest, for at least the eviction threshold, has been let go."""
+        now = time.monotonic()
+        with self._lock:
+            if len(self._clients) < self._max_clients:
+                return True
+            if self.trigger_word is None:
+                return False
+            idle = [c for c in self._clients if not c.owes and not c.eof]
+            oldest = min(idle, key=lambda c: c.active, default=None)
+            if oldest is None or now - oldest.active < self._evict_idle:
+                return False
+            self._evicted += 1
+            message = (
+                f"{oldest.peer} was closed after {now - oldest.active:.0f} s without a request, "
+                f"to make room for {newcomer} ({self._max_clients} controllers at most)"
+            )
+            self._report("idle client evicted", "idle clients evicted", message)
+        self._let_go(selector, oldest, message, closed_by="evicted for a new client (idle)")
+        return True
+
+    def _refuse(self, sock: socket.socket, peer: str) -> None:
+        """Tells a connection beyond max_clients why, and closes it."""
+        message = (
+            f"{self._max_clients} controllers are connected already, the most this server "
+            "takes (--max-clients); try again later"
+        )
+        with self._lock:
+            self._refused += 1
+            self._error_lines += 1
+            self._report(
+                "connection refused",
+                "connections refused",
+                f"refused {peer}: {message}",
+            )
+        with contextlib.suppress(OSError):
+            sock.send(encode_line(self._error_line(message)))
+        close_socket(sock, abort=False)
+
+    def _let_go(
+        self, selector: selectors.BaseSelector, client: _Client, message: str, closed_by: str
+    ) -> None:
+        """Closes an idle client gracefully after an error line saying why. It owes nothing,
+        so its stream is on a line boundary and the line goes out whole or not at all."""
+        data = encode_line(self._error_line(message))
+        try:
+            written = client.sock.send(data)
+        except OSError:
+            written = 0
+        with self._lock:
+            client.error_lines += 1
+            self._error_lines += 1
+            if written == len(data):
+                client.sent += 1
+                client.bytes += written
+                self._n_sent += 1
+                self._n_bytes += written
+        self._remove(selector, client, None, closed_by=closed_by)
 
     def _set_interest(self, selector: selectors.BaseSelector, client: _Client, want: int) -> None:
         if want == client.interest:
@@ -520,7 +625,7 @@ class ServerOutput(Output):
         except (BlockingIOError, InterruptedError):
             return
         except OSError as e:
-            self._remove(selector, client, f"lost {client.peer}: {e.strerror or e}")
+            self._remove(selector, client, self._lost(client, e))
             return
         if not data:
             # The client closed its side: it sends nothing more, and may still read.
@@ -528,24 +633,29 @@ class ServerOutput(Output):
             with self._lock:
                 if self.trigger_word is None:
                     lost = client.queue.clear()
-                    client.dropped += lost
-                    self._n_dropped += lost
+                    client.failed += lost
+                    self._lose(lost, cause=f"{client.peer} closed its side with lines queued")
             self._set_interest(selector, client, client.interest & ~selectors.EVENT_READ)
             return
         if self.trigger_word is not None:
+            client.active = time.monotonic()
             self._requests_in(selector, client, data)
         # In stream mode what a client sends means nothing: it is read and let go.
 
     def _requests_in(self, selector: selectors.BaseSelector, client: _Client, data: bytes) -> None:
         """Splits what a client sent into request lines and handles each."""
         buf = client.inbuf
+        if client.discarding:
+            # The rest of an overlong line, already answered: skipped up to its newline.
+            end = data.find(b"\n")
+            if end < 0:
+                return
+            client.discarding = False
+            data = data[end + 1 :]
         buf += data
         while (end := buf.find(b"\n")) >= 0:
             line = bytes(buf[:end])
             del buf[: end + 1]
-            if client.discarding:
-                client.discarding = False
-                continue
             if len(client.requests) >= MAX_OWED_REPLIES:
                 self._remove(
                     selector,
@@ -628,24 +738,30 @@ class ServerOutput(Output):
             self._waker.wake()
 
     def _check_timers(self, selector: selectors.BaseSelector) -> None:
-        """Resets stalled clients; answers requests past their deadline, or while the source
-        is down, with an error line."""
+        """Resets stalled clients; closes idle ones; answers requests past their deadline,
+        or while the source is down, with an error line."""
         now = time.monotonic()
         with self._lock:
             clients = list(self._clients)
             waiting = self._waiting
         for client in clients:
+            deadline = self._idle_until(client)
+            if deadline is not None and deadline <= now:
+                idle = now - client.active
+                message = f"{client.peer} was closed after {idle:.0f} s without a request"
+                with self._lock:
+                    self._idle_closed += 1
+                    self._report("idle client closed", "idle clients closed", message)
+                self._let_go(
+                    selector, client, message + " (--client-idle-timeout)", closed_by="idle"
+                )
+                continue
             if (
                 client.batch is not None
                 and self._stall_timeout is not None
                 and now - client.last_progress >= self._stall_timeout
             ):
-                self._remove(
-                    selector,
-                    client,
-                    f"{client.peer} took no data for {self._stall_timeout:g} s (stopped "
-                    "reading, or gone); reset the connection",
-                )
+                self._remove(selector, client, self._stalled(client))
         if waiting:
             fault = self._source_fault()
             if fault is not None:
@@ -672,7 +788,7 @@ class ServerOutput(Output):
                 try:
                     progressed, lines, size = client.batch.write_to(client.sock)
                 except OSError as e:
-                    self._remove(selector, client, f"lost {client.peer}: {e.strerror or e}")
+                    self._remove(selector, client, self._lost(client, e))
                     break
                 if lines:
                     with self._lock:
@@ -682,7 +798,8 @@ class ServerOutput(Output):
                         self._n_bytes += size
                 if not progressed:
                     break
-                client.last_progress = time.monotonic()
+                # A reply on its way counts as activity: idle time starts once it is out.
+                client.last_progress = client.active = time.monotonic()
                 if client.batch.written:
                     client.batch = None
             if client.closed_by is not None:
@@ -710,18 +827,31 @@ class ServerOutput(Output):
             if client.closed_by is not None:
                 return
             lost = client.queue.clear() + _inflight(client)
-            client.dropped += lost
-            self._n_dropped += lost
+            client.failed += lost
             self._waiting -= sum(r.data is None for r in client.requests)
             client.requests.clear()
             client.closed_by = closed_by or reason or "closed"
             if reason is not None:
                 self._n_errors += 1
                 self._last_error = reason + (f"; {lost:,} unsent lines dropped" if lost else "")
+                self._report("client reset", "clients reset", reason)
+            self._lose(lost, cause=f"{client.peer} left with lines unsent ({client.closed_by})")
             self._clients.remove(client)
             self._gone.append(client.stats())
         self._set_interest(selector, client, 0)
         close_socket(client.sock, abort=reason is not None)
+
+    def _stalled(self, client: _Client) -> str:
+        return (
+            f"{client.peer} took no data for {self._stall_timeout:g} s (stopped reading, or "
+            "gone); reset the connection"
+        )
+
+    def _lost(self, client: _Client, e: OSError) -> str:
+        if e.errno == errno.ETIMEDOUT and self._stall_timeout is not None:
+            # The kernel's TCP_USER_TIMEOUT fired: the same verdict as our own stall timer.
+            return self._stalled(client)
+        return f"lost {client.peer}: {e.strerror or e}"
 
     def _source_fault(self) -> str | None:
         """Why the source cannot give a frame now (from ``fault``), or None. A ``fault``
@@ -732,6 +862,11 @@ class ServerOutput(Output):
             return self._fault()
         except Exception as e:
             return f"the state of the source is unknown ({e!r})"
+
+    def _report(self, singular: str, plural: str, message: str) -> None:
+        """Reports a client refused, evicted, closed or reset on ``LOG`` (rate-limited, per
+        kind: "client reset", "clients reset"). The caller holds self._lock."""
+        self._warnings.note(self._warnings.kind(singular, plural), 1, message)
 
     def _error(self, message: str) -> None:
         with self._lock:

@@ -20,8 +20,13 @@ class ClientStats:
     sent: int
     """Lines (frames, answers, error lines) written to it whole."""
     dropped: int
-    """Lines meant for it and not written: its queue overflowed behind a slow reader, or it
-    left with lines still queued."""
+    """Lines meant for it and not written: ``dropped_full_buffer + dropped_write_failed``."""
+    dropped_full_buffer: int
+    """Of those, its oldest lines pushed out of its full queue while it read more slowly
+    than lines came."""
+    dropped_write_failed: int
+    """Of those, lines it never got: it left, was reset or closed its side with them still
+    queued, or a line was larger than its queue."""
     requests: int
     """Trigger requests received from it."""
     answers: int
@@ -46,7 +51,11 @@ class ServerStats(OutputStats):
     accepted: int
     """Connections accepted in all."""
     refused: int
-    """Connections refused because ``max_clients`` were connected."""
+    """Connections refused because ``max_clients`` were connected, none of them idle."""
+    evicted: int
+    """Idle clients closed to make room for a new connection at ``max_clients``."""
+    idle_closed: int
+    """Clients closed after ``idle_timeout`` seconds without a request (trigger mode)."""
     lines: int
     """Lines the loop sent (stream mode; each one goes to every client)."""
     unheard: int

@@ -48,7 +48,7 @@ class StreamOutput(Output):
     def _send(self, data: bytes) -> bool:
         with self._lock:
             if self._closing or self._fd is None:
-                return self._drop()
+                return self._drop(cause=f"a line sent after {self.spec} was closed")
             if self._broken:
                 return self._drop()
             fd = self._fd
@@ -61,7 +61,10 @@ class StreamOutput(Output):
                     except BlockingIOError:
                         if written == 0:
                             # A non-blocking descriptor that is full: drop rather than wait.
-                            return self._drop(f"{self.spec} is full (non-blocking); line dropped")
+                            return self._drop(
+                                f"{self.spec} is full (non-blocking); line dropped",
+                                full_buffer=True,
+                            )
                         # Half a line is out: finish it, or the framing is lost.
                         select.select([], [fd], [])
             except BrokenPipeError as e:

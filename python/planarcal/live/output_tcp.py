@@ -138,7 +138,9 @@ class TcpOutput(Output):
         with self._lock:
             return OutputStats(
                 sent=self._n_sent,
-                dropped=self._n_dropped,
+                dropped=self._n_full + self._n_failed,
+                dropped_full_buffer=self._n_full,
+                dropped_write_failed=self._n_failed,
                 bytes_sent=self._n_bytes,
                 errors=self._n_errors,
                 reconnects=max(self._connects - 1, 0),
@@ -157,19 +159,30 @@ class TcpOutput(Output):
     def _send(self, data: bytes) -> bool:
         size = len(data)
         with self._lock:
-            if self._closing or not self._connected:
-                return self._drop()
+            if self._closing:
+                return self._drop(cause=f"a line sent after {self.spec} was closed")
+            if not self._connected:
+                return self._drop(cause=self._not_connected())
             if size > self._max_bytes:
                 return self._drop(
                     f"a line of {size:,} bytes is larger than max_pending_bytes "
                     f"({self._max_bytes:,}); dropped"
                 )
-            self._n_dropped += self._pending.push(data)
+            pushed_out = self._pending.push(data)
+            if pushed_out:
+                self._lose(pushed_out, full_buffer=True)
             wake = self._idle
             self._idle = False
         if wake:
             self._wake()
         return True
+
+    def _not_connected(self) -> str:
+        """Why a line cannot be sent now (the caller holds the lock)."""
+        why = f"not connected to {self.spec}"
+        if self._last_error is not None:
+            why += f" (last error: {self._last_error})"
+        return why + "; lines are dropped until the controller accepts a connection"
 
     def _wake(self) -> None:
         self._waker.wake()
@@ -183,7 +196,7 @@ class TcpOutput(Output):
             self._thread.join(self._flush_timeout + 0.5)
         with self._lock:
             # Only if the writer is stuck (in a slow name lookup): count what it left.
-            self._n_dropped += self._pending.clear()
+            self._lose(self._pending.clear(), cause=f"{self.spec} was closed with lines queued")
         if not self._thread.is_alive():
             self._waker.close()
 
@@ -408,12 +421,12 @@ class TcpOutput(Output):
         with self._lock:
             self._connected = False
             lost = self._pending.clear() + self._inflight_lines
-            self._n_dropped += lost
             self._inflight_lines = 0
             self._idle = False
             if reason is not None:
                 self._n_errors += 1
                 self._last_error = reason + (f"; {lost:,} unsent lines dropped" if lost else "")
+            self._lose(lost, cause=reason or f"{self.spec} closed with lines unsent")
         self._connected_event.clear()
         # Graceful after a clean close: the controller reads every line we wrote. Abortive
         # after a failure: what is still queued towards it is stale, maybe half a line.

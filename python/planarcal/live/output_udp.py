@@ -55,7 +55,7 @@ class UdpOutput(Output):
         with self._lock:
             sock = self._sock
             if self._closing or sock is None:
-                return self._drop()
+                return self._drop(cause=f"a line sent after {self.spec} was closed")
             if len(data) > self._max_datagram:
                 return self._drop(
                     f"a line of {len(data):,} bytes is longer than the {self._max_datagram:,}-byte "
@@ -66,7 +66,9 @@ class UdpOutput(Output):
                 try:
                     sock.send(data)
                 except BlockingIOError:
-                    return self._drop(f"the socket buffer for {self.spec} is full; line dropped")
+                    return self._drop(
+                        f"the socket buffer for {self.spec} is full; line dropped", full_buffer=True
+                    )
                 except ConnectionRefusedError:
                     self._n_errors += 1
                     self._last_error = f"nothing is listening at {self.spec} (connection refused)"

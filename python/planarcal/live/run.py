@@ -11,7 +11,10 @@ was written is flushed, and a summary goes to stderr.
 
 Exit status 1 (after the summary) when every frame read failed, with the count and the first
 and last fault on stderr; at once, before any frame, when the source's frames are not of the
-size the calibration was made on (``FrameSizeError``).
+size the calibration was made on (``FrameSizeError``). Also exit status 1, after the
+summary, when lines were meant for the output and none got there (a full disk, no
+controller at a tcp:// address: ``output_options.undelivered``); losses are warned about on
+stderr while they happen.
 """
 
 from __future__ import annotations
@@ -32,6 +35,12 @@ from typing import Any, TextIO
 from planarcal.calib.calibration import Calibration
 from planarcal.errors import OutputError
 from planarcal.live.line_format import FIELDS, FORMATS, LineFormat, line_format
+from planarcal.live.output_options import (
+    add_server_arguments,
+    server_options,
+    undelivered,
+    wait_for_peer,
+)
 from planarcal.live.output_server import ServerOutput, check_trigger_word
 from planarcal.live.output_spec import parse_network_spec
 from planarcal.live.outputs import open_output
@@ -163,8 +172,8 @@ def add_output_arguments(p: argparse.ArgumentParser) -> None:
         "--output",
         default="-",
         help="- (stdout, the default), a file (appended to), tcp://HOST:PORT or udp://HOST:PORT "
-        "(a controller listening there), or tcp-listen://HOST:PORT (planarcal listens; any "
-        "number of controllers connect; port 0: any free port, printed on stderr)",
+        "(a controller listening there), or tcp-listen://HOST:PORT (planarcal listens; up to "
+        "--max-clients controllers connect; port 0: any free port, printed on stderr)",
     )
     g.add_argument(
         "--format",
@@ -208,6 +217,7 @@ def add_output_arguments(p: argparse.ArgumentParser) -> None:
         help="with tcp-listen: lines queued for each client at most (default 256); beyond, a "
         "slow client's oldest lines are dropped and counted",
     )
+    add_server_arguments(g)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -262,6 +272,7 @@ def output_plan(args: argparse.Namespace) -> OutputPlan:
                 f"{args.client_buffer}"
             )
         server["max_pending_lines"] = args.client_buffer
+    server.update(server_options(args, spec, listening))
     return OutputPlan(spec, fmt, server, bool(args.trigger))
 
 
@@ -310,6 +321,7 @@ def main(args: argparse.Namespace) -> int:
     if isinstance(output, ServerOutput):
         mode = f"; trigger mode: send {output.trigger_word}" if plan.trigger else ""
         print(f"planarcal run: listening on {output.address}{mode}", file=sys.stderr, flush=True)
+    wait_for_peer(output)  # a tcp:// controller that is listening gets the first frames too
     fmt = plan.format
     progress = Progress(sys.stderr)
     serialise_s = 0.0
@@ -338,5 +350,9 @@ def main(args: argparse.Namespace) -> int:
     failure = all_frames_failed(tracker)
     if failure is not None:
         print(f"planarcal run: error: {failure}", file=sys.stderr)
+        return 1
+    lost = undelivered(output)  # lines were meant for a destination and none got there
+    if lost is not None:
+        print(f"planarcal run: error: {lost}", file=sys.stderr)
         return 1
     return 0
