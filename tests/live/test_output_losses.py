@@ -14,6 +14,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,6 @@ import numpy as np
 import pytest
 import test_server as served
 
-from planarcal.live import output_sink
 from planarcal.live.output_options import undelivered
 from planarcal.live.outputs import FileOutput, TcpOutput
 
@@ -96,7 +96,9 @@ def test_a_controller_that_is_not_listening_is_warned_about_and_the_run_fails(
     err = done.stderr
     assert done.returncode == 1, err
     where = f"tcp://127.0.0.1:{port}"
-    assert f"{where}: no connection after 2 s (cannot connect to {where}: Connection refused)" in err
+    assert (
+        f"{where}: no connection after 2 s (cannot connect to {where}: Connection refused)" in err
+    )
     assert f"{where}: 1 line lost: not connected to {where}" in err
     output = summary_of(err)["output"]
     assert (output["sent"], output["dropped_write_failed"]) == (0, FRAMES)
@@ -135,7 +137,7 @@ def test_losses_are_rate_limited_with_their_counts(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
     clock = [1000.0]
-    monkeypatch.setattr(output_sink.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(time, "monotonic", lambda: clock[0])  # the warnings' clock
     out = FileOutput("/dev/full") if os.path.exists("/dev/full") else None
     if out is None:
         pytest.skip("needs /dev/full")

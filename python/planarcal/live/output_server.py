@@ -643,7 +643,9 @@ class ServerOutput(Output):
         # In stream mode what a client sends means nothing: it is read and let go.
 
     def _requests_in(self, selector: selectors.BaseSelector, client: _Client, data: bytes) -> None:
-        """Splits what a client sent into request lines and handles each."""
+        """Splits what a client sent into request lines and handles each. A line longer than
+        MAX_REQUEST_BYTES gets one error line, however it arrives (whole, or in pieces that
+        are each skipped up to its newline), so every line sent gets exactly one reply."""
         buf = client.inbuf
         if client.discarding:
             # The rest of an overlong line, already answered: skipped up to its newline.
@@ -654,7 +656,7 @@ class ServerOutput(Output):
             data = data[end + 1 :]
         buf += data
         while (end := buf.find(b"\n")) >= 0:
-            line = bytes(buf[:end])
+            line = bytes(buf[: min(end, MAX_REQUEST_BYTES + 1)])
             del buf[: end + 1]
             if len(client.requests) >= MAX_OWED_REPLIES:
                 self._remove(
@@ -664,15 +666,21 @@ class ServerOutput(Output):
                     "answers; reset the connection",
                 )
                 return
-            self._request(client, line)
+            if len(line) > MAX_REQUEST_BYTES:
+                self._reply_overlong(client)
+            else:
+                self._request(client, line)
         if len(buf) > MAX_REQUEST_BYTES:
             buf.clear()
             client.discarding = True
-            self._reply_error(
-                client,
-                f"a request line longer than {MAX_REQUEST_BYTES} bytes; send "
-                f"{self.trigger_word} and a newline",
-            )
+            self._reply_overlong(client)
+
+    def _reply_overlong(self, client: _Client) -> None:
+        self._reply_error(
+            client,
+            f"a request line longer than {MAX_REQUEST_BYTES} bytes; send "
+            f"{self.trigger_word} and a newline",
+        )
 
     def _request(self, client: _Client, raw: bytes) -> None:
         text = raw.strip()
