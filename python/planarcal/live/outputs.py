@@ -16,7 +16,16 @@ promises, chosen for a live stream that a robot acts on:
 * Everything is accounted for: once ``close()`` has returned, ``stats.sent + stats.dropped``
   is the number of ``send`` calls. ``sent`` means handed to the operating system: TCP has no
   application-level acknowledgement, so lines in the kernel's buffers when a connection dies
-  are lost without anyone knowing how many.
+  are lost without anyone knowing how many. ``dropped`` is the sum of two kinds of loss:
+  ``dropped_full_buffer`` (a reader slower than the loop: its oldest lines pushed out of a
+  full buffer, the newest kept) and ``dropped_write_failed`` (no connection or reader, a
+  failed write such as a full disk, a connection lost with the line queued, a line too large,
+  a send after close).
+* A loss is reported while it happens: a warning on the ``planarcal.live.outputs`` logger
+  (stderr under ``planarcal run``; Python's last-resort handler prints it there too when the
+  application configured no logging), the first at once and then at most one every 10 s
+  with the counts since, and what is left at close. ``output_options.undelivered`` says
+  when a sink was given lines and delivered none (``planarcal run`` then exits 1).
 * ``close()`` flushes what it can (within ``flush_timeout`` on TCP), is idempotent, and may
   be called from another thread or from a signal handler while ``send`` is running.
 
@@ -31,18 +40,22 @@ The sinks:
     a client of a controller listening there; see ``TcpOutput`` (bounded buffer, newest lines
     kept, reconnection with back-off, fresh data after a reconnect).
 ``udp://HOST:PORT``
-    one datagram per line; see ``UdpOutput``.
+    one datagram per line; see ``UdpOutput``. UDP has no acknowledgement: a datagram the
+    network loses, or that no one listens for, may still count as sent.
 ``tcp-listen://HOST:PORT``
-    planarcal listens; any number of controllers connect, each with its own bounded queue
-    (a slow one drops its own oldest lines, counted, and holds back no one); in trigger mode
-    each request line gets one answer. See ``ServerOutput``. Its counts are per client.
+    planarcal listens; up to ``max_clients`` controllers connect, each with its own bounded
+    queue (a slow one drops its own oldest lines, counted, and holds back no one); in
+    trigger mode each request line gets one answer, and idle clients are closed after
+    ``idle_timeout`` or make room for a new one at the cap. See ``ServerOutput``. Its counts
+    are per client.
 anything else
     a file, appended to (created if absent); see ``FileOutput``.
 
 The modules: ``output_spec`` (reading the spec), ``output_sink`` (``Output``, the base every
 sink derives from, and ``OutputStats``), ``output_stream`` (stdout, pipes, files),
-``output_udp``, ``output_tcp``, ``output_server``, and ``output_socket`` (what the TCP sinks
-share). Everything is importable from here.
+``output_udp``, ``output_tcp``, ``output_server``, ``output_socket`` (what the TCP sinks
+share) and ``output_options`` (the server's command-line options, and the checks ``planarcal
+run`` makes of its output). Everything is importable from here.
 """
 
 from __future__ import annotations
@@ -51,6 +64,7 @@ import os
 from typing import Any
 
 from planarcal.errors import OutputError
+from planarcal.live.output_options import undelivered
 from planarcal.live.output_server import ServerOutput
 from planarcal.live.output_server_stats import ClientStats, ServerStats
 from planarcal.live.output_sink import Output, OutputStats
@@ -71,6 +85,7 @@ __all__ = [
     "TcpOutput",
     "UdpOutput",
     "open_output",
+    "undelivered",
 ]
 
 
