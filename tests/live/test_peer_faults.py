@@ -175,12 +175,21 @@ def test_stream_peers_that_never_read_close_or_reset_never_slow_the_loop(
     assert frames == sorted(set(frames))
     mine = reader.client.stats(server)
     assert (mine.sent, mine.dropped) == (len(lines), 0)
-    # The peer that never read: a few of the MB sent reached it, the rest are counted.
+    # The peer that never read: a few of the MB sent reached it, the rest are counted. It is
+    # there to the end, or (when a loaded machine slows the run past its 5 s stall limit)
+    # reset, and then the lines after it left were never meant for it.
     theirs = stuck.stats(server)
-    assert theirs.sent + theirs.dropped == stats.lines
     assert stats.lines * len(lines[0]) > 4e6 and theirs.sent * len(lines[0]) < 2e6
-    assert not theirs.connected and theirs.closed_by == "the server closed"
-    assert "closing: lines still in flight" in (stats.last_error or "")
+    assert not theirs.connected
+    if theirs.closed_by == "the server closed":
+        assert theirs.sent + theirs.dropped == stats.lines
+    else:
+        assert "took no data for 5 s" in (theirs.closed_by or ""), theirs
+        assert theirs.sent + theirs.dropped < stats.lines
+    assert theirs.dropped_full_buffer > 0  # pushed out behind a reader that never read
+    assert "closing: lines still in flight" in (stats.last_error or "") or (
+        "took no data for 5 s" in (theirs.closed_by or "")
+    )
     reset = resetter.stats(server)
     assert not reset.connected and (reset.closed_by or "").startswith("lost 127.0.0.1")
     assert reset.dropped > 0 and reset.sent + reset.dropped <= stats.lines
