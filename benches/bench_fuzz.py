@@ -4,8 +4,11 @@ Each numeric entry point (estimate_homography with every solver, findHomography 
 flag, perspectiveTransform, transform_points, reprojection_errors, reprojection_stats, the
 robust estimator and its batch, the tracker's core) gets --per-entry inputs (10^6 by default);
 the image and file entry points (detect_board, Calibration.load, CameraIntrinsics.load_yaml,
-locate_objects, Tracker.process) --per-file-entry. The inputs and the judge of each call are
-tests/fuzz_inputs.py's (the suite's tests/test_fuzz_short.py runs a few thousand of each).
+locate_objects, Tracker.process, the registration to a robot, the calibration-file editor)
+--per-file-entry; the sessions (a trigger server on loopback sockets with hostile clients,
+`planarcal run` in a child over a hostile source) --per-session-entry. The inputs and the
+judge of each call are tests/fuzz_inputs.py's (the suite's tests/test_fuzz_short.py runs a
+few thousand of each).
 
 The calls run in --workers worker processes, each watched by this one: a worker that dies is
 a crash, one whose current call makes no progress for --hang-s seconds is a hang (its Python
@@ -15,12 +18,14 @@ findings of every other kind. Memory: each worker's peak RSS.
 
     python benches/bench_fuzz.py                        # the full campaign (minutes to hours)
     python benches/bench_fuzz.py --per-entry 200000     # as large as fits
-    python benches/bench_fuzz.py --quick                # 20000 / 200 inputs, a minute or two
+    python benches/bench_fuzz.py --quick                # 20000 / 200 / 20 inputs, minutes
     python benches/bench_fuzz.py --rust 100000          # also the core's proptest at that scale
 
 Targets: 0 panics crossing into Python, 0 crashes, 0 hangs, 0 degenerate inputs given an H,
-0 corrupt files accepted (and 0 exceptions that are not planarcal's, 0 results the docs rule
-out).
+0 corrupt files accepted, 0 confident wrong answers (a registration of the wrong hand or
+beyond 5 x its own std_mm of the truth, an edited file loaded with another meaning), 0 silent
+losses (a request, a frame or a whole run lost without a word) (and 0 exceptions that are not
+planarcal's, 0 results the docs rule out).
 """
 
 from __future__ import annotations
@@ -47,10 +52,11 @@ sys.path.insert(0, str(TESTS))
 
 from reporting import cpu_model, load_average, table_lines  # noqa: E402
 
-from fuzz_inputs import ENTRIES, NUMERIC_ENTRIES, Tally, judge  # noqa: E402
+from fuzz_inputs import ENTRIES, NUMERIC_ENTRIES, SESSION_ENTRIES, Tally, judge  # noqa: E402
 
 NUMERIC_UNIT = 5000
 FILE_UNIT = 100
+SESSION_UNIT = 5
 
 
 def _self_test_case(rng: Any) -> Any:
@@ -143,7 +149,8 @@ class Campaign:
     def run_entry(self, entry: str, count: int) -> EntryReport:
         """Every input of one entry point, on fresh workers (so peak RSS is this entry's)."""
         report = EntryReport()
-        unit = NUMERIC_UNIT if entry in NUMERIC_ENTRIES else FILE_UNIT
+        unit = {True: NUMERIC_UNIT, False: FILE_UNIT}[entry in NUMERIC_ENTRIES]
+        unit = SESSION_UNIT if entry in SESSION_ENTRIES else unit
         pending = [Unit(entry, a, min(a + unit, count)) for a in range(0, count, unit)]
         tasks = self.ctx.Queue()
         # Written synchronously: a worker that dies right after reporting a unit (a crash in
@@ -225,6 +232,8 @@ class Campaign:
         return added - 1
 
     def count_of(self, entry: str) -> int:
+        if entry in SESSION_ENTRIES:
+            return int(self.args.per_session_entry)
         count: int = self.args.per_entry if entry in NUMERIC_ENTRIES else self.args.per_file_entry
         return count
 
@@ -254,7 +263,7 @@ def table(reports: dict[str, EntryReport], markdown: bool) -> list[str]:
     headers = [
         "entry point", "inputs", "results", "clean errors", "unclean errors (type: count)",
         "panics", "crashes", "hangs", "bad results", "degenerate given H", "corrupt accepted",
-        "peak RSS MiB", "time s",
+        "confident wrong answers", "silent losses", "peak RSS MiB", "time s",
     ]  # fmt: skip
     rows = []
     for entry, r in reports.items():
@@ -269,15 +278,17 @@ def table(reports: dict[str, EntryReport], markdown: bool) -> list[str]:
                 unclean,
                 str(o["panic"]),
                 str(len(r.crashes)),
-                str(len(r.hangs)),
+                str(len(r.hangs) + o["hang"]),
                 str(o["bad_result"]),
                 str(o["degenerate_h"]),
                 str(o["corrupt_accepted"]),
+                str(o["wrong_answer"]),
+                str(o["silent_loss"]),
                 f"{r.peak_rss_kib / 1024:.0f}",
                 f"{r.seconds:.0f}",
             ]
         )
-    right = [False, True, True, True, False] + [True] * 8
+    right = [False, True, True, True, False] + [True] * 10
     return table_lines(headers, right, rows, markdown)
 
 
@@ -285,9 +296,11 @@ def verdict(reports: dict[str, EntryReport]) -> str:
     total = {
         "panics": sum(r.tally.outcomes["panic"] for r in reports.values()),
         "crashes": sum(len(r.crashes) for r in reports.values()),
-        "hangs": sum(len(r.hangs) for r in reports.values()),
+        "hangs": sum(len(r.hangs) + r.tally.outcomes["hang"] for r in reports.values()),
         "degenerate given H": sum(r.tally.outcomes["degenerate_h"] for r in reports.values()),
         "corrupt accepted": sum(r.tally.outcomes["corrupt_accepted"] for r in reports.values()),
+        "confident wrong answers": sum(r.tally.outcomes["wrong_answer"] for r in reports.values()),
+        "silent losses": sum(r.tally.outcomes["silent_loss"] for r in reports.values()),
     }
     others = {
         "unclean errors": sum(r.tally.outcomes["unclean"] for r in reports.values()),
@@ -341,7 +354,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--per-entry", type=int, default=1_000_000)
     parser.add_argument("--per-file-entry", type=int, default=3000)
-    parser.add_argument("--quick", action="store_true", help="20000 / 200 inputs an entry")
+    parser.add_argument("--per-session-entry", type=int, default=200)
+    parser.add_argument("--quick", action="store_true", help="20000 / 200 / 20 inputs an entry")
     parser.add_argument("--only", nargs="+", choices=list(ENTRIES), default=list(ENTRIES))
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=15)
@@ -352,7 +366,7 @@ def main() -> None:
     parser.add_argument("--self-test", action="store_true", help="check the crash/hang watcher")
     args = parser.parse_args()
     if args.quick:
-        args.per_entry, args.per_file_entry = 20_000, 200
+        args.per_entry, args.per_file_entry, args.per_session_entry = 20_000, 200, 20
     if args.self_test:
         self_test(args)
         return

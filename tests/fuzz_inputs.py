@@ -22,12 +22,16 @@ Every call ends in one of these outcomes:
 from __future__ import annotations
 
 import atexit
+import contextlib
 import dataclasses
 import json
 import math
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
+import time
 import warnings
 import zlib
 from collections import Counter
@@ -411,6 +415,9 @@ class Case:
     kwargs: dict[str, Any]
     check: Callable[[Any], str | None]
     note: str = ""
+    also: tuple[type[BaseException], ...] = (Exception,)
+    """What a clean error must also be, beside a planarcal.Error (ValueError where every
+    fault is the input's, CalibrationFileError for a file)."""
 
     def describe(self, limit: int = 4000) -> str:
         def short(v: Any) -> str:
@@ -974,26 +981,923 @@ def case_tracker(rng: np.random.Generator) -> Case:
     return Case(tracker.process, (frame,), {}, check)
 
 
-FILE_ENTRIES: dict[str, Callable[[np.random.Generator], Case]] = {
+# -- registration to a robot (issue 21) --------------------------------------------------------
+
+# How far a fit may be from the truth before it is a confident wrong answer: this many times
+# its own reported 1-sigma (std_mm) plus the touch noise the truth was given.
+WRONG_ANSWER_SIGMAS = 5.0
+REGISTRATION_NOISE_MM = (0.0, 0.0, 0.005, 0.02, 0.05, 0.2)
+BAD_MODELS: tuple[Any, ...] = ("", "Rigid", None, 3, "projective", True)
+BAD_OUTLIER_MM: tuple[Any, ...] = (0.0, -1.0, math.nan, math.inf, "1", True, 1e-300, [1.0])
+
+
+@dataclasses.dataclass
+class RobotTruth:
+    """The board -> robot map the touches were made with: its 3 x 3 matrix, whether it
+    mirrors, the model it belongs to, and the touch noise (mm per coordinate)."""
+
+    matrix: F64
+    reflected: bool
+    model: str
+    noise_mm: float
+
+    def apply(self, plane: F64) -> F64:
+        return np.asarray(plane @ self.matrix[:2, :2].T + self.matrix[:2, 2], dtype=np.float64)
+
+
+def robot_truth(rng: np.random.Generator) -> RobotTruth:
+    """A random rigid, similarity or affine map, mirrored half the time (a board's frame and
+    a robot's base frame seen from above are usually of opposite hands)."""
+    model = pick(rng, ("rigid", "rigid", "similarity", "affine"))
+    angle = rng.uniform(-math.pi, math.pi)
+    reflected = bool(rng.random() < 0.5)
+    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    linear = rotation @ np.diag([1.0, -1.0 if reflected else 1.0])
+    if model == "similarity":
+        linear *= rng.uniform(0.5, 2.0)
+    elif model == "affine":
+        linear = linear @ np.array([[rng.uniform(0.7, 1.4), rng.uniform(-0.3, 0.3)], [0.0, 1.0]])
+    m = np.eye(3)
+    m[:2, :2] = linear
+    m[:2, 2] = rng.uniform(-1000.0, 1000.0, 2)
+    return RobotTruth(m, reflected, model, float(pick(rng, REGISTRATION_NOISE_MM)))
+
+
+def registration_count(rng: np.random.Generator) -> int:
+    """Pairs: too few (0-3), a few, many, rarely thousands (a fit's cost is a hang risk)."""
+    u = rng.random()
+    if u < 0.1:
+        return int(rng.integers(0, 4))
+    if u < 0.7:
+        return int(rng.integers(4, 9))
+    if u < 0.998:
+        return int(rng.integers(9, 60))
+    return int(rng.choice([2000, 20_000]))
+
+
+# Board-side shapes; "collinear" and "near_line" (within 0.05 mm of one line) leave the
+# handedness of the map undetermined for every model.
+REGISTRATION_SHAPES: tuple[str, ...] = ("spread", "spread", "spread", "collinear", "near_line")
+REGISTRATION_SHAPES += ("duplicates",)
+REGISTRATION_SHAPES += ("clustered", "two_places")
+
+
+def board_shape(rng: np.random.Generator, n: int, shape: str, span: F64) -> F64:
+    """n board points (mm) of one shape across a board of `span` (width, height) mm."""
+    pts = rng.uniform(0.0, 1.0, (n, 2)) * span
+    if shape in ("collinear", "near_line") and n:
+        a, b = rng.uniform(0.0, 1.0, (2, 2)) * span
+        pts = a + rng.uniform(0.0, 1.0, (n, 1)) * (b - a)
+        if shape == "near_line":
+            normal = np.array([a[1] - b[1], b[0] - a[0]]) / max(float(np.hypot(*(b - a))), 1e-9)
+            pts += rng.uniform(-0.05, 0.05, (n, 1)) * normal
+    elif shape == "duplicates" and n > 1:
+        pts[rng.integers(n, size=n // 2 + 1)] = pts[int(rng.integers(n))]
+    elif shape == "clustered" and n:
+        pts = pts[:1] + rng.uniform(-1.0, 1.0, (n, 2))
+    elif shape == "two_places" and n:
+        pts = pts[rng.integers(2, size=n) % max(n, 1)] if n > 1 else pts
+    return pts
+
+
+def _board_side(
+    rng: np.random.Generator, cal: pc.Calibration, n: int, shape: str
+) -> tuple[str, Any, F64]:
+    """How the board side is given (dots, board_mm or image_px), the value given, and the
+    board points (mm) it stands for."""
+    board = cal.board
+    assert board is not None
+    span = np.array([(board.cols - 1) * board.pitch, (board.rows - 1) * board.pitch])
+    how = pick(rng, ("board_mm", "board_mm", "dots", "image_px", "fit"))
+    if how == "dots":
+        if shape in ("collinear", "near_line"):
+            row = int(rng.integers(board.rows))
+            index = row * board.cols + rng.integers(board.cols, size=n)
+        else:
+            index = rng.integers(board.n_points, size=n)
+        plane = board.world_points()[index] * np.asarray(cal.world_scale)
+        return how, index.tolist() if rng.random() < 0.5 else index, plane
+    plane = board_shape(rng, n, shape, span)
+    if how == "image_px":
+        px = cal.world_to_image(plane) if n else np.zeros((0, 2))
+        return how, px, np.asarray(cal.image_to_world(px), dtype=np.float64).reshape(-1, 2)
+    return how, plane, plane
+
+
+def hostile_robot(rng: np.random.Generator, robot: F64) -> tuple[Any, bool]:
+    """The robot points as a caller might pass them, and whether they still mean `robot`
+    (strings of the same numbers do; NaN, 1e308, complex, bools and the rest do not)."""
+    u = rng.random()
+    if u < 0.55 or not robot.size:
+        return robot, True
+    if u < 0.62:
+        return robot.astype(str), True
+    if u < 0.66:
+        return robot.tolist(), True
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        if u < 0.7:
+            return robot.astype(np.complex128) * pick(rng, (1.0, 1j, 1 + 1e-3j)), False
+        if u < 0.74:
+            bent: list[Any] = robot.tolist()
+            bent[int(rng.integers(len(bent)))][int(rng.integers(2))] = pick(rng, (True, False))
+            return bent, False
+        if u < 0.78:
+            return robot > robot.mean(), False
+        if u < 0.86:
+            out = robot.copy()
+            out.flat[int(rng.integers(out.size))] = rng.choice(SPECIALS)
+            return out, False
+        if u < 0.9:
+            return robot * float(pick(rng, (1e300, 1e306, 1e-300, 5e-324))), False
+        if u < 0.94:
+            return np.c_[robot, rng.choice([0.0, 1e308, np.nan], len(robot))], False
+    return pick(rng, (None, "robot", [[1.0, 2.0]], robot[:, :1], robot.T, {"x": 1})), False
+
+
+@dataclasses.dataclass
+class RegistrationCase:
+    """What a registration case knows beside its call: the truth and whether the call's
+    inputs still stand for it."""
+
+    truth: RobotTruth
+    plane: F64
+    meaningful: bool
+
+
+def case_registration(rng: np.random.Generator) -> Case:
+    """RobotFrame.fit or Calibration.register of touches made through a known map, with
+    board sides of every shape (collinear and within 0.05 mm of a line among them) and robot
+    points of every hostile kind."""
+    cal = fixtures().calibration
+    truth = robot_truth(rng)
+    n, shape = registration_count(rng), pick(rng, REGISTRATION_SHAPES)
+    how, given, plane = _board_side(rng, cal, n, shape)
+    robot = truth.apply(plane) + rng.normal(0.0, truth.noise_mm, (n, 2)) if n else plane
+    robot_arg, meaningful = hostile_robot(rng, robot)
+    kwargs: dict[str, Any] = {"model": truth.model if rng.random() < 0.85 else "affine"}
+    if rng.random() < 0.05:
+        kwargs["model"] = pick(rng, BAD_MODELS)
+        meaningful = False
+    if rng.random() < 0.1:
+        kwargs["outlier_mm"] = pick(rng, BAD_OUTLIER_MM)
+    if rng.random() < 0.1:
+        kwargs["drop_outliers"] = pick(rng, (True, False, None, 1, "yes"))
+    known = RegistrationCase(truth, plane, meaningful)
+    check = registration_checker(known)
+    note = f"{how}, {shape}, {n} pairs, {truth.model}{' mirrored' if truth.reflected else ''}"
+    if how == "fit":
+        return Case(pc.RobotFrame.fit, (plane, robot_arg), kwargs, check, note, (ValueError,))
+    kwargs[how] = given
+
+    def register(cal: pc.Calibration, robot_mm: Any, **kw: Any) -> Any:
+        return cal.register(robot_mm, **kw).robot_frame
+
+    return Case(register, (cal, robot_arg), kwargs, check, note, (ValueError,))
+
+
+def registration_checker(known: RegistrationCase) -> Callable[[Any], str | None]:
+    def check(frame: Any) -> str | None:
+        if not isinstance(frame, pc.RobotFrame):
+            return f"not a RobotFrame: {type(frame).__name__}"
+        if not np.isfinite(frame.plane_to_robot).all():
+            return f"a non-finite transform: {frame.plane_to_robot.tolist()}"
+        if not known.meaningful:
+            return None
+        return registration_error(frame, known)
+
+    return check
+
+
+def registration_error(frame: Any, known: RegistrationCase) -> str | None:
+    """ "wrong answer: ..." when the fit's handedness is not the truth's, or it maps a touched
+    point (or their centroid) farther from the truth than WRONG_ANSWER_SIGMAS x (its own
+    std_mm + the touch noise)."""
+    truth = known.truth
+    if bool(frame.reflected) != truth.reflected:
+        return (
+            f"wrong answer: reflected={frame.reflected} for a map that "
+            f"{'mirrors' if truth.reflected else 'does not mirror'} (rms {frame.rms_mm:.3g} mm)"
+        )
+    probe = np.vstack([np.unique(known.plane, axis=0), known.plane.mean(axis=0)])
+    off = np.hypot(*(frame.to_robot(probe) - truth.apply(probe)).T)
+    std = frame.std_mm(probe)
+    bound = WRONG_ANSWER_SIGMAS * (std + truth.noise_mm) + 1e-9 * (1.0 + np.abs(probe).max())
+    worst = int(np.argmax(off - bound))
+    if off[worst] > bound[worst]:
+        return (
+            f"wrong answer: {off[worst]:.3g} mm from the truth at {probe[worst].tolist()} "
+            f"where its std_mm is {std[worst]:.3g} (noise {truth.noise_mm} mm)"
+        )
+    return None
+
+
+# -- the calibration-file editor (issue 21) ----------------------------------------------------
+
+# What the editor does to one node of a saved calibration's JSON, by the node's type; every
+# node also gets "delete" (its key, or its place in its list, removed).
+EDITS_NUMBER: tuple[str, ...] = (
+    "string",
+    "true",
+    "false",
+    "null",
+    "huge",
+    "-huge",
+    "2**80",
+    "nan",
+    "inf",
+)
+EDITS_NUMBER += ("-inf", "negate", "zero", "nudge", "list", "object", "swap", "delete")
+EDITS_STRING = ("empty", "other", "number", "null", "true", "list", "delete")
+EDITS_BOOL = ("not", "zero", "one", "string", "null", "delete")
+EDITS_NULL = ("zero", "string", "list", "object", "false", "delete")
+EDITS_LIST = ("shorten", "lengthen", "empty", "reverse", "wrap", "object", "null", "delete")
+EDITS_OBJECT = ("add_key", "empty", "list", "null", "string", "delete")
+
+
+def _edits_of(value: Any) -> tuple[str, ...]:
+    if isinstance(value, bool):
+        return EDITS_BOOL
+    if isinstance(value, int | float):
+        return EDITS_NUMBER
+    if isinstance(value, str):
+        return EDITS_STRING
+    if value is None:
+        return EDITS_NULL
+    return EDITS_LIST if isinstance(value, list) else EDITS_OBJECT
+
+
+def json_paths(data: Any) -> list[tuple[Any, ...]]:
+    """The path (keys and indices) of every node of `data` but the root, depth first."""
+    paths: list[tuple[Any, ...]] = []
+
+    def walk(node: Any, path: tuple[Any, ...]) -> None:
+        if path:
+            paths.append(path)
+        if isinstance(node, dict | list):
+            for k, v in node.items() if isinstance(node, dict) else enumerate(node):
+                walk(v, (*path, k))
+
+    walk(data, ())
+    return paths
+
+
+def file_edits(data: Any) -> list[tuple[tuple[Any, ...], str]]:
+    """Every (path, edit) the editor makes to `data`: each node changed in each way its type
+    allows (case i of the editor is edit i modulo their number)."""
+    edits: list[tuple[tuple[Any, ...], str]] = []
+    for path in json_paths(data):
+        node = data
+        for key in path:
+            node = node[key]
+        edits.extend((path, edit) for edit in _edits_of(node))
+    return edits
+
+
+def _edited_value(value: Any, edit: str, sibling: Any) -> Any:
+    """`value` changed by `edit` (not "delete", "swap" gets `sibling`)."""
+    number = value if isinstance(value, int | float) and not isinstance(value, bool) else 1.0
+    table: dict[str, Any] = {
+        "string": str(value), "true": True, "false": False, "null": None, "huge": 1e308,
+        "-huge": -1e308, "2**80": 2**80, "nan": math.nan, "inf": math.inf, "-inf": -math.inf,
+        "negate": -number, "zero": 0, "one": 1, "nudge": number * 1.01 + 0.01, "list": [value],
+        "object": {"value": value}, "swap": sibling, "empty": "" if isinstance(value, str) else
+        type(value)() if isinstance(value, list | dict) else value, "other": f"{value}x",
+        "number": 1.0, "not": not value, "wrap": [value],
+    }  # fmt: skip
+    if edit in table:
+        return table[edit]
+    if edit == "shorten":
+        return value[:-1]
+    if edit == "lengthen":
+        return [*value, value[-1] if value else 0.0]
+    if edit == "reverse":
+        return value[::-1]
+    assert edit == "add_key", edit
+    return {**value, "extra": 1}
+
+
+def edit_json(data: Any, path: tuple[Any, ...], edit: str) -> Any:
+    """`data` (changed in place) with the node at `path` edited."""
+    parent = data
+    for key in path[:-1]:
+        parent = parent[key]
+    key = path[-1]
+    if edit == "delete":
+        del parent[key]
+        return data
+    sibling = parent[key]
+    if isinstance(parent, list) and len(parent) > 1:
+        sibling = parent[(key + 1) % len(parent)]
+    elif isinstance(parent, dict) and len(parent) > 1:
+        keys = list(parent)
+        sibling = parent[keys[(keys.index(key) + 1) % len(keys)]]
+    parent[key] = _edited_value(parent[key], edit, sibling)
+    return data
+
+
+@dataclasses.dataclass
+class RegisteredFixture:
+    """A saved calibration with a registration to a robot, and what it maps a fixed set of
+    pixels to (board mm, robot mm)."""
+
+    text: str
+    data: Any
+    edits: list[tuple[tuple[Any, ...], str]]
+    probe_px: F64
+    board_mm: F64
+    robot_mm: F64
+
+
+_REGISTERED: RegisteredFixture | None = None
+
+
+def registered_fixture() -> RegisteredFixture:
+    global _REGISTERED
+    if _REGISTERED is None:
+        fx = fixtures()
+        dots = [0, 5, 13, 70, 126, 139, 64]
+        plane = fx.calibration.board.world_points()[dots]  # type: ignore[union-attr]
+        truth = np.array([[0.0, 1.0], [1.0, 0.0]])  # a mirror: the usual board-to-robot case
+        robot = plane @ truth.T + [250.0, -120.0] + np.linspace(-0.02, 0.02, 14).reshape(7, 2)
+        cal = fx.calibration.register(robot, dots=dots)
+        path = cal.save(fx.folder / "registered.json")
+        text = path.read_text()
+        data = json.loads(text)
+        probe = np.array([[640.0, 360.0], [100.0, 80.0], [1200.0, 700.0], [300.0, 500.0]])
+        _REGISTERED = RegisteredFixture(
+            text,
+            data,
+            file_edits(data),
+            probe,
+            cal.image_to_world(probe),
+            cal.image_to_world(probe, frame="robot"),
+        )
+    return _REGISTERED
+
+
+def case_calibration_edit(rng: np.random.Generator, index: int = 0) -> Case:
+    """Edit `index` (modulo their number) of a real saved calibration with a registration:
+    every node changed in type and value, lists shortened and lengthened, keys removed and
+    added."""
+    fx = registered_fixture()
+    path, edit = fx.edits[index % len(fx.edits)]
+    body = json.dumps(edit_json(json.loads(fx.text), path, edit), allow_nan=True).encode()
+    where = fixtures().folder / f"edited_{os.getpid()}.json"
+
+    def load(p: Path, body: bytes) -> pc.Calibration:
+        p.write_bytes(body)
+        return pc.Calibration.load(p)
+
+    def check(cal: Any) -> str | None:
+        # A file whose registration is removed (or null) is a valid file of a calibration
+        # not registered: it says so (frame="robot" is refused), so its robot side is not
+        # compared.
+        frame = "robot" if cal.robot_frame is not None else "board"
+        try:
+            board = cal.image_to_world(fx.probe_px)
+            robot = (
+                fx.robot_mm if frame == "board" else cal.image_to_world(fx.probe_px, frame=frame)
+            )
+        except Exception as e:  # a file that loads and then cannot map means something else
+            return f"wrong answer: loaded, then mapping raised {type(e).__name__}: {e}"
+        if not (np.array_equal(board, fx.board_mm) and np.array_equal(robot, fx.robot_mm)):
+            moved = max(np.abs(board - fx.board_mm).max(), np.abs(robot - fx.robot_mm).max())
+            return f"wrong answer: loaded with another meaning (moved up to {moved:.3g} mm)"
+        try:
+            cal.save(where.with_suffix(".resaved.json"))
+        except Exception as e:
+            return f"saving the loaded file raised {type(e).__name__}: {e}"
+        return None
+
+    note = f"{edit} {'/'.join(map(str, path))}: calibration file"
+    return Case(load, (where, body), {}, check, note, (pc.CalibrationFileError,))
+
+
+# -- the trigger server (issue 21) -------------------------------------------------------------
+
+TRIGGER = b"TRIGGER"
+# Beyond its trigger timeout (and an idle client's eviction), how long a well-behaved
+# controller may wait for its answer, s: longer is a request lost.
+ANSWER_GRACE_S = 3.0
+# Idle clients are evicted after this long when the server takes the option (issue 21).
+SERVER_IDLE_S = 1.0
+FRAME_PERIODS_S = (0.01, 0.03, 0.1)
+
+
+def _connect(port: int, timeout: float) -> Any:
+    import socket  # noqa: PLC0415
+
+    sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
+    sock.settimeout(timeout)
+    return sock
+
+
+def _read_lines(sock: Any, until: float, want: int | None = None) -> tuple[list[bytes], str]:
+    """Lines read until EOF (or `want` lines, or the deadline): the lines, and how it ended
+    ("eof", "enough", "timeout", "reset")."""
+    buf = b""
+    lines: list[bytes] = []
+    while want is None or len(lines) < want:
+        left = until - time.monotonic()
+        if left <= 0:
+            return lines, "timeout"
+        sock.settimeout(left)
+        try:
+            data = sock.recv(65536)
+        except TimeoutError:
+            return lines, "timeout"
+        except OSError:
+            return lines, "reset"
+        if not data:
+            return lines, "eof"
+        buf += data
+        *whole, buf = buf.split(b"\n")
+        lines.extend(whole)
+    return lines, "enough"
+
+
+@dataclasses.dataclass
+class Peer:
+    """One hostile client's plan: what it sends, whether it then closes its side, and how
+    many replies it must get (None: at most one per line sent, as many as the server could
+    give before letting it go)."""
+
+    kind: str
+    send: bytes
+    shut_write: bool = False
+    expect: int | None = None
+    read: bool = True
+    reset: bool = False
+
+
+def hostile_peer(rng: np.random.Generator) -> Peer:
+    kind = pick(rng, ("huge", "binary", "half_closed", "flood", "reset", "deaf", "words"))
+    if kind == "huge":
+        size = int(pick(rng, (1025, 4096, 100_000, 2_000_000)))
+        end = b"\n" if rng.random() < 0.7 else b""
+        # An overlong line gets one error line; the TRIGGER after it is a request of its own.
+        return Peer(kind, b"A" * size + end + TRIGGER + b"\n", True, 2 if end else 1)
+    if kind == "binary":
+        return Peer(kind, rng.bytes(int(rng.integers(1, 5000))), bool(rng.random() < 0.5))
+    if kind == "half_closed":
+        n = int(rng.integers(1, 17))
+        return Peer(kind, (TRIGGER + b"\n") * n, True, n)
+    if kind == "flood":
+        n = int(pick(rng, (20, 64, 65, 300, 5000)))
+        return Peer(kind, (TRIGGER + b"\r\n") * n, bool(rng.random() < 0.5), n if n <= 64 else None)
+    if kind == "reset":
+        return Peer(kind, TRIGGER + b"\n", reset=True, read=False)
+    if kind == "deaf":  # asks and never reads
+        return Peer(kind, (TRIGGER + b"\n") * int(rng.integers(1, 60)), read=False)
+    lines = [b"trigger", b" TRIGGER ", b"TRIGGER TRIGGER", b"", b"\r", b"\xff\xfe", b"TRIG"]
+    chosen = [pick(rng, lines) for _ in range(int(rng.integers(1, 10)))]
+    replies = sum(1 for line in chosen if line.strip())
+    return Peer(kind, b"\n".join(chosen) + b"\n", True, replies)
+
+
+def _run_peer(port: int, peer: Peer, until: float, out: dict[str, Any]) -> None:
+    import socket  # noqa: PLC0415
+
+    try:
+        sock = _connect(port, 2.0)
+    except OSError as e:
+        out["connect"] = str(e)
+        return
+    try:
+        if peer.reset:
+            sock.sendall(peer.send)
+            sock.setsockopt(
+                socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00"
+            )
+            return
+        with contextlib.suppress(OSError):
+            sock.sendall(peer.send)
+            if peer.shut_write:
+                sock.shutdown(socket.SHUT_WR)
+        if peer.read:
+            out["lines"], out["end"] = _read_lines(sock, until)
+        else:
+            time.sleep(max(0.0, min(0.5, until - time.monotonic())))
+    finally:
+        sock.close()
+
+
+def _controller(port: int, until: float, out: dict[str, Any]) -> None:
+    """A well-behaved controller: connects, asks once, reads one line; if it is turned away
+    (an error line and a close, as a server at its cap does) it connects again, until
+    `until`."""
+    errors: list[str] = []
+    while time.monotonic() < until:
+        try:
+            sock = _connect(port, 1.0)
+        except OSError as e:
+            errors.append(f"connect: {e}")
+            time.sleep(0.1)
+            continue
+        with sock:
+            try:
+                sock.sendall(TRIGGER + b"\n")
+            except OSError as e:
+                errors.append(f"send: {e}")
+                continue
+            lines, end = _read_lines(sock, until, want=1)
+        if lines and lines[0].startswith(b'{"frame"'):
+            out["answer"] = lines[0]
+            return
+        errors.append(f"{lines[:1]!r} then {end}")
+        time.sleep(0.1)
+    out["errors"] = errors
+
+
+def _frames(server: Any, period: float, stop: Any) -> None:
+    k = 0
+    while not stop.wait(period):
+        k += 1
+        server.answer(time.time(), lambda k=k: f'{{"frame": {k}}}')
+
+
+def trigger_session(
+    peers: list[Peer], idle_peers: int, cap: int, trigger_timeout: float, period: float
+) -> dict[str, Any]:
+    """A trigger server on loopback fed a frame every `period` s, the hostile `peers` and
+    `idle_peers` idle connections thrown at it, then a well-behaved controller; what each
+    got, and how long close() took."""
+    import inspect  # noqa: PLC0415
+    import threading  # noqa: PLC0415
+
+    from planarcal.live.output_server import ServerOutput  # noqa: PLC0415
+
+    options: dict[str, Any] = {"trigger_word": "TRIGGER", "trigger_timeout": trigger_timeout}
+    options["max_clients"] = cap
+    if "idle_timeout" in inspect.signature(ServerOutput).parameters:
+        options["idle_timeout"] = SERVER_IDLE_S
+    server = ServerOutput("127.0.0.1", 0, **options)
+    stop = threading.Event()
+    feeder = threading.Thread(target=_frames, args=(server, period, stop), daemon=True)
+    feeder.start()
+    until = time.monotonic() + trigger_timeout + SERVER_IDLE_S + ANSWER_GRACE_S
+    idle = []
+    outs: list[dict[str, Any]] = [{} for _ in peers]
+    threads = [
+        threading.Thread(target=_run_peer, args=(server.port, p, until, o), daemon=True)
+        for p, o in zip(peers, outs, strict=True)
+    ]
+    try:
+        for _ in range(idle_peers):
+            with contextlib.suppress(OSError):
+                idle.append(_connect(server.port, 2.0))
+        for t in threads:
+            t.start()
+        controller: dict[str, Any] = {}
+        _controller(server.port, until, controller)
+        for t in threads:
+            t.join(max(0.0, until - time.monotonic()) + 1.0)
+    finally:
+        stop.set()
+        started = time.monotonic()
+        server.close()
+        closed_s = time.monotonic() - started
+        for sock in idle:
+            sock.close()
+    return {"controller": controller, "peers": outs, "close_s": closed_s, "alive": threads}
+
+
+def session_problem(session: dict[str, Any], peers: list[Peer], full: bool) -> str | None:
+    """What went wrong in a trigger session: the controller's request lost, a request given
+    more or fewer replies than one, a hang. A client may get one line more, last, before the
+    server closes it (an error line saying why: idle, evicted); a server at its cap (`full`)
+    may turn a client away with one error line."""
+    if session["close_s"] > 5.0:
+        return f"hang: close() took {session['close_s']:.1f} s"
+    if any(t.is_alive() for t in session["alive"]):
+        return "hang: a client's connection neither answered nor closed"
+    controller = session["controller"]
+    if "answer" not in controller:
+        return (
+            f"silent loss: the well-behaved controller got no answer: {controller['errors'][-3:]}"
+        )
+    for peer, out in zip(peers, session["peers"], strict=True):
+        lines, end = out.get("lines"), out.get("end")
+        if lines is None:
+            continue
+        goodbye = end == "eof" and bool(lines) and not lines[-1].startswith(b'{"frame"')
+        if full and goodbye and len(lines) == 1:
+            continue  # turned away at the cap, with the reason
+        replies = len(lines) - goodbye
+        sent = peer.send.count(b"\n")
+        if replies > max(sent, 1):
+            return f"bad result: {peer.kind} client sent {sent} lines, got {len(lines)} replies"
+        if peer.expect is not None and len(lines) == peer.expect:
+            continue
+        if peer.expect is not None and replies != peer.expect and end != "reset":
+            return (
+                f"silent loss: {peer.kind} client owed {peer.expect} replies, got {replies} ({end})"
+            )
+    return None
+
+
+def case_trigger_server(rng: np.random.Generator) -> Case:
+    """A trigger server's session: hostile clients (overlong lines, binary, floods, half-
+    closed, resets, clients that never read, idle ones beyond the cap), then a well-behaved
+    controller, which must get its answer."""
+    cap = int(pick(rng, (2, 4, 8, 32)))
+    peers = [hostile_peer(rng) for _ in range(int(rng.integers(0, min(cap, 5) + 1)))]
+    idle_peers = int(pick(rng, (0, 0, 0, cap - len(peers), cap + 3)))
+    trigger_timeout = float(pick(rng, (0.3, 1.0)))
+    period = float(pick(rng, FRAME_PERIODS_S))
+    note = f"cap {cap}, {idle_peers} idle, " + " ".join(p.kind for p in peers)
+    return Case(
+        trigger_session,
+        (peers, max(0, idle_peers), cap, trigger_timeout, period),
+        {},
+        lambda session: session_problem(session, peers, len(peers) + idle_peers >= cap),
+        note,
+    )
+
+
+# -- planarcal run over hostile sources (issue 21) ---------------------------------------------
+
+RUN_FRAMES = 12
+# A run over a source this small that takes longer than this has hung.
+RUN_TIMEOUT_S = 30.0
+# Words of a report of a loss: on stderr (beside the summary) or as a summary's key.
+LOSS_WORDS: tuple[str, ...] = (
+    "lost",
+    "skip",
+    "truncat",
+    "corrupt",
+    "cannot",
+    "fail",
+    "missing",
+    "undecodable",
+)
+LOSS_WORDS += ("damaged", "error", "warning", "fewer", "dropped", "vanish", "wrong_size")
+
+
+def _frame_image(k: int) -> NDArray[np.uint8]:
+    img = np.full((720, 1280), 200, np.uint8)
+    for j in range(3):
+        cv2.circle(img, (200 + 300 * j + 10 * k, 200 + 100 * j), 30, 40, -1)
+    return img
+
+
+@dataclasses.dataclass
+class RunSources:
+    """A real video (MJPG, RUN_FRAMES frames of the calibration's size), and the frames as
+    PNG bytes, to damage."""
+
+    video: bytes
+    pngs: list[bytes]
+    calibration: Path
+
+
+_RUN_SOURCES: RunSources | None = None
+
+
+def run_sources() -> RunSources:
+    global _RUN_SOURCES
+    if _RUN_SOURCES is None:
+        fx = fixtures()
+        path = fx.folder / "good.avi"
+        writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 10.0, (1280, 720))
+        frames = [_frame_image(k) for k in range(RUN_FRAMES)]
+        for f in frames:
+            writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR))
+        writer.release()
+        pngs = [cv2.imencode(".png", f)[1].tobytes() for f in frames]
+        _RUN_SOURCES = RunSources(path.read_bytes(), pngs, fx.folder / "calib.json")
+    return _RUN_SOURCES
+
+
+@dataclasses.dataclass
+class SourcePlan:
+    """A hostile source to write: its kind, the files (name -> bytes, None for a folder of
+    that name; a name ending in ' -> TARGET' a symbolic link), the good frames in it, the
+    files made unreadable, and the file that vanishes mid-run."""
+
+    kind: str
+    files: dict[str, bytes | None]
+    good: int
+    locked: tuple[str, ...] = ()
+    vanish: str | None = None
+
+
+VIDEO_DAMAGE = ("truncated", "truncated", "bytes_flipped", "zeroed", "empty", "garbage")
+FOLDER_KINDS = ("mixed", "mixed", "vanishing", "only_bad", "empty")
+
+
+def _damaged_video(rng: np.random.Generator, video: bytes, kind: str) -> bytes:
+    if kind == "truncated":
+        return video[: int(len(video) * rng.uniform(0.02, 0.98))]
+    if kind == "bytes_flipped":
+        b = bytearray(video)
+        for i in rng.integers(0, len(b), int(rng.integers(1, 50))):
+            b[int(i)] = int(rng.integers(256))
+        return bytes(b)
+    if kind == "zeroed":
+        a, n = int(rng.integers(len(video))), int(rng.integers(1, 100_000))
+        return video[:a] + bytes(min(len(video) - a, n)) + video[a + n :]
+    return b"" if kind == "empty" else rng.bytes(int(rng.integers(1, 200_000)))
+
+
+BAD_IMAGE_FILES: dict[str, Callable[[bytes], bytes | None]] = {
+    "notes.txt": lambda png: b"not an image\n",
+    "junk.png": lambda png: b"this is text, not a PNG\n" * 10,
+    "empty.png": lambda png: b"",
+    "truncated.png": lambda png: png[: len(png) // 3],
+    "flipped.png": lambda png: png[:100] + bytes(200) + png[300:],
+    "small.png": lambda png: cv2.imencode(".png", np.zeros((48, 64), np.uint8))[1].tobytes(),
+    "folder.png": lambda png: None,
+    "dangling.png -> /nonexistent/x.png": lambda png: b"",
+    "locked.png": lambda png: png,
+}
+
+
+def source_plan(rng: np.random.Generator, kind: str | None = None) -> SourcePlan:
+    """A hostile source of `kind` ("video truncated", "folder mixed", ...; None: drawn)."""
+    src = run_sources()
+    if kind is None:
+        video = rng.random() < 0.4
+        kind = f"video {pick(rng, VIDEO_DAMAGE)}" if video else f"folder {pick(rng, FOLDER_KINDS)}"
+    what, how = kind.split()
+    if what == "video":
+        body = _damaged_video(rng, src.video, how)
+        return SourcePlan(kind, {"video.avi": body}, 0 if how == "empty" else -1)
+    fewest = 2 if how == "vanishing" else 1
+    good = 0 if how in ("only_bad", "empty") else int(rng.integers(fewest, RUN_FRAMES + 1))
+    files: dict[str, bytes | None] = {f"{k:03d}.png": src.pngs[k] for k in range(good)}
+    locked: list[str] = []
+    if how in ("mixed", "only_bad"):
+        for name in rng.choice(list(BAD_IMAGE_FILES), int(rng.integers(1, 5)), replace=False):
+            stem = str(name)
+            target = f"{int(rng.integers(RUN_FRAMES)):03d}_{stem}"
+            files[target] = BAD_IMAGE_FILES[stem](src.pngs[0])
+            if stem == "locked.png":
+                locked.append(target)
+    vanish = f"{good - 1:03d}.png" if how == "vanishing" and good > 1 else None
+    return SourcePlan(kind, files, good, tuple(locked), vanish)
+
+
+def write_source(plan: SourcePlan, where: Path) -> Path:
+    """The source on disk: a video file, or a folder of the plan's files."""
+    if where.exists():
+        for path in where.rglob("*"):  # unreadable files and folders too
+            path.chmod(0o700) if path.is_dir() and not path.is_symlink() else None
+        shutil.rmtree(where)
+    where.mkdir(parents=True)
+    if plan.kind.startswith("video"):
+        path = where / "video.avi"
+        path.write_bytes(plan.files["video.avi"] or b"")
+        return path
+    for name, body in plan.files.items():
+        if " -> " in name:
+            link, target = name.split(" -> ")
+            os.symlink(target, where / link)
+        elif body is None:
+            (where / name).mkdir()
+        else:
+            (where / name).write_bytes(body)
+    for name in plan.locked:
+        os.chmod(where / name, 0)
+    return where
+
+
+def _vanish_when_started(child: Any, out: Path, victim: Path) -> None:
+    """Removes `victim` once the run has written its first line (the folder listed, the
+    last image not read yet, unless the run is faster than this poll)."""
+    deadline = time.monotonic() + RUN_TIMEOUT_S
+    while child.poll() is None and time.monotonic() < deadline:
+        if out.exists() and out.stat().st_size:
+            break
+        time.sleep(0.005)
+    victim.unlink(missing_ok=True)
+
+
+def run_on_source(plan: SourcePlan, where: Path) -> dict[str, Any]:
+    """`planarcal run` over the plan's source, to a file, in a child: its exit status, the
+    lines it wrote, its stderr; "timeout" if it did not end within RUN_TIMEOUT_S."""
+    source = write_source(plan, where)
+    out = where.parent / f"{where.name}.out"
+    out.unlink(missing_ok=True)
+    command = [sys.executable, "-m", "planarcal", "run", "--calibration"]
+    command += [str(run_sources().calibration), "--source", str(source), "-o", str(out)]
+    child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    if plan.vanish:
+        _vanish_when_started(child, out, source / plan.vanish)
+    try:
+        _, err = child.communicate(timeout=RUN_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        _, err = child.communicate()
+        return {"timeout": True, "stderr": err.decode(errors="replace")}
+    lines = out.read_bytes().count(b"\n") if out.exists() else 0
+    done = {"status": child.returncode, "lines": lines, "stderr": err.decode(errors="replace")}
+    done["readable"] = _readable_extras(plan, source)
+    return done
+
+
+def _readable_extras(plan: SourcePlan, source: Path) -> int:
+    """The plan's damaged images that OpenCV reads all the same (a damaged PNG may still
+    decode; a file made unreadable is read by root): frames a run may deliver beyond the
+    good ones."""
+    if not source.is_dir():
+        return 0
+    extras = 0
+    for name in plan.files:
+        path = source / name.split(" -> ")[0]
+        if not name[:3].isdigit() or name.endswith("_small.png") or len(name) == 7:
+            continue  # not an image of the folder's, of the wrong size, or a good one
+        if path.is_file() and os.access(path, os.R_OK) and cv2.imread(str(path)) is not None:
+            extras += 1
+    return extras
+
+
+def _reported_loss(stderr: str) -> bool:
+    """Whether the run said it lost something: a line on stderr beside the summary, or a
+    nonzero count of faults in the summary."""
+    for line in stderr.splitlines():
+        body = line.removeprefix("planarcal run: ")
+        if body.startswith("{"):
+            with contextlib.suppress(ValueError):
+                summary = json.loads(body)
+                if _loss_counts(summary):
+                    return True
+            continue
+        if any(word in line.lower() for word in LOSS_WORDS):
+            return True
+    return False
+
+
+def _loss_counts(node: Any, key: str = "") -> int:
+    if isinstance(node, dict):
+        return sum(_loss_counts(v, k) for k, v in node.items() if k != "stage_s")
+    lossy = any(word in key.lower() for word in LOSS_WORDS)
+    return int(node) if lossy and isinstance(node, int) and not isinstance(node, bool) else 0
+
+
+def run_problem(done: dict[str, Any], plan: SourcePlan) -> str | None:
+    """A hang, a traceback, exit 0 having delivered nothing, or exit 0 with frames lost and
+    no report of it (a damaged video's frames count as lost against the RUN_FRAMES it
+    held)."""
+    err = done["stderr"]
+    if done.get("timeout"):
+        return f"hang: planarcal run over a {plan.kind} did not end in {RUN_TIMEOUT_S:g} s"
+    if "Traceback" in err:
+        return f"unclean: a traceback: {err.strip().splitlines()[-1][:200]}"
+    if done["status"] != 0:
+        return None if err.strip() else f"silent loss: exit {done['status']} and nothing said"
+    expected = RUN_FRAMES if plan.good < 0 else plan.good
+    if done["lines"] == 0:
+        return f"silent loss: exit 0 having delivered nothing ({plan.kind})"
+    if done["lines"] > expected + done["readable"]:
+        return f"bad result: {done['lines']} lines from {expected} frames"
+    if done["lines"] < expected and not _reported_loss(err):
+        return f"silent loss: exit 0, {done['lines']} of {expected} frames, no report of a loss"
+    return None
+
+
+def case_run_source(rng: np.random.Generator) -> Case:
+    """`planarcal run` over a hostile source: a truncated or byte-damaged video, an empty or
+    random file, a folder with non-images, empty, truncated, unreadable or wrong-sized
+    images, a folder of nothing but those, or one whose image vanishes mid-run."""
+    plan = source_plan(rng)
+    where = fixtures().folder / f"source_{os.getpid()}"
+
+    def check(done: Any) -> str | None:
+        return run_problem(done, plan)
+
+    return Case(run_on_source, (plan, where), {}, check, plan.kind)
+
+
+FILE_ENTRIES: dict[str, Callable[..., Case]] = {
     "detect_board": case_detect,
     "Calibration.load": case_calibration_load,
     "CameraIntrinsics.load_yaml": case_intrinsics_load,
     "locate_objects": case_locate,
     "Tracker.process": case_tracker,
+    "registration": case_registration,
+    "calibration_editor": case_calibration_edit,
+    "trigger_server": case_trigger_server,
+    "planarcal_run": case_run_source,
 }
 ENTRIES = {**NUMERIC_ENTRIES, **FILE_ENTRIES}
+# Entry points whose cases are sessions of seconds (sockets, a child process), not calls.
+SESSION_ENTRIES = frozenset({"trigger_server", "planarcal_run"})
+# Entry points whose case i is the i-th of a list (every edit of a file), not a draw.
+INDEXED = frozenset({"calibration_editor"})
 
 
 def cases(entry: str, seed: int, start: int, stop: int) -> Iterator[tuple[int, Case]]:
     """Cases start..stop-1 of `entry`, each rebuilt identically whatever range asks for it."""
-    make = ENTRIES[entry]
+    make: Callable[..., Case] = ENTRIES[entry]
     block = start // BLOCK
     while block * BLOCK < stop:
         rng = block_rng(entry, seed, block)
         for index in range(block * BLOCK, (block + 1) * BLOCK):
             with warnings.catch_warnings(), np.errstate(all="ignore"):
                 warnings.simplefilter("ignore")
-                case = make(rng)
+                case = make(rng, index) if entry in INDEXED else make(rng)
             if start <= index < stop:
                 yield index, case
         block += 1
@@ -1005,7 +1909,9 @@ def case_at(entry: str, seed: int, index: int) -> Case:
 
 # -- the judge ---------------------------------------------------------------------------------
 
-OUTCOMES = ("result", "error", "unclean", "panic", "bad_result", "degenerate_h", "corrupt_accepted")
+OUTCOMES: tuple[str, ...] = ("result", "error", "unclean", "panic", "bad_result", "degenerate_h")
+OUTCOMES += ("corrupt_accepted",)
+OUTCOMES += ("wrong_answer", "silent_loss", "hang")
 
 
 def judge(case: Case) -> tuple[str, str]:
@@ -1025,6 +1931,9 @@ def judge(case: Case) -> tuple[str, str]:
                 e, pc.CalibrationFileError | pc.IntrinsicsError
             ):
                 return "unclean", f"{name} (not the file error): {e}"[:300]
+            if not isinstance(e, case.also):
+                wanted = " or ".join(t.__name__ for t in case.also)
+                return "unclean", f"{name} (not a {wanted}): {e}"[:300]
             return "error", name
         return "unclean", f"{type(e).__module__}.{name}: {e}"[:300]
     with warnings.catch_warnings(), np.errstate(all="ignore"):
@@ -1036,6 +1945,9 @@ def judge(case: Case) -> tuple[str, str]:
         return "degenerate_h", problem
     if problem.startswith("corrupt"):
         return "corrupt_accepted", problem
+    for outcome in ("wrong_answer", "silent_loss", "hang", "unclean"):
+        if problem.startswith(outcome.replace("_", " ")):
+            return outcome, problem
     return "bad_result", problem
 
 
