@@ -24,6 +24,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import dataclasses
+import inspect
 import json
 import math
 import os
@@ -991,6 +992,10 @@ BAD_MODELS: tuple[Any, ...] = ("", "Rigid", None, 3, "projective", True)
 BAD_OUTLIER_MM: tuple[Any, ...] = (0.0, -1.0, math.nan, math.inf, "1", True, 1e-300, [1.0])
 
 
+# Whether the fit takes the robot frame's hand ("right", "left"), as from issue 21 on.
+HANDEDNESS_OPTION = "handedness" in inspect.signature(pc.RobotFrame.fit).parameters
+
+
 @dataclasses.dataclass
 class RobotTruth:
     """The board -> robot map the touches were made with: its 3 x 3 matrix, whether it
@@ -1143,6 +1148,13 @@ def case_registration(rng: np.random.Generator) -> Case:
         kwargs["outlier_mm"] = pick(rng, BAD_OUTLIER_MM)
     if rng.random() < 0.1:
         kwargs["drop_outliers"] = pick(rng, (True, False, None, 1, "yes"))
+    if HANDEDNESS_OPTION and rng.random() < 0.25:
+        # The hand stated (a right-handed robot frame is the board's mirror image): the true
+        # one fixes a map the touches on one line cannot; a wrong or malformed one is the
+        # caller's fault, judged only for a clean answer.
+        right, wrong = ("right", "left") if truth.reflected else ("left", "right")
+        kwargs["handedness"] = pick_mostly(rng, (right,), (wrong, "RIGHT", "", True, 1), 0.3)
+        meaningful &= kwargs["handedness"] == right
     known = RegistrationCase(truth, plane, meaningful)
     check = registration_checker(known)
     note = f"{how}, {shape}, {n} pairs, {truth.model}{' mirrored' if truth.reflected else ''}"
@@ -1523,7 +1535,6 @@ def trigger_session(
     """A trigger server on loopback fed a frame every `period` s, the hostile `peers` and
     `idle_peers` idle connections thrown at it, then a well-behaved controller; what each
     got, and how long close() took."""
-    import inspect  # noqa: PLC0415
     import threading  # noqa: PLC0415
 
     from planarcal.live.output_server import ServerOutput  # noqa: PLC0415
@@ -1711,7 +1722,12 @@ BAD_IMAGE_FILES: dict[str, Callable[[bytes], bytes | None]] = {
     "folder.png": lambda png: None,
     "dangling.png -> /nonexistent/x.png": lambda png: b"",
     "locked.png": lambda png: png,
+    # Unreadable even for root: reading /proc/self/mem at offset 0 is an I/O error.
+    "unreadable.png -> /proc/self/mem": lambda png: b"",
+    "fifo.png": lambda png: b"",
 }
+# Made a FIFO (a reader would wait for a writer for ever).
+FIFO_SUFFIX = "fifo.png"
 
 
 def source_plan(rng: np.random.Generator, kind: str | None = None) -> SourcePlan:
@@ -1756,6 +1772,8 @@ def write_source(plan: SourcePlan, where: Path) -> Path:
             os.symlink(target, where / link)
         elif body is None:
             (where / name).mkdir()
+        elif name.endswith(FIFO_SUFFIX):
+            os.mkfifo(where / name)
         else:
             (where / name).write_bytes(body)
     for name in plan.locked:
