@@ -45,15 +45,50 @@ def pair(name: str, value: object, exc: type[ValueError] = ArgumentError) -> tup
     return (real(f"{name}[0]", items[0], exc), real(f"{name}[1]", items[1], exc))
 
 
+def real_array(
+    name: str,
+    value: ArrayLike,
+    exc: type[ValueError] = ArgumentError,
+    what: str = "an array of real numbers",
+) -> F64:
+    """value as a float64 array of any shape whose elements are real numbers: a string,
+    bytes, a bool or a complex number (which ``np.asarray(..., float64)`` would take "12.5" as
+    12.5, True as 1, or drop the imaginary part of) is refused, naming it, and so is what
+    cannot be converted (``what`` says what was expected). Finiteness is the caller's to check
+    (it knows which point to name)."""
+    try:
+        bad = _first_not_real(value)
+    except (TypeError, ValueError):  # a ragged nesting
+        raise exc(f"{name} must be {what}") from None
+    if bad is not None:
+        raise exc(f"{name} must hold real numbers, got {bad!r} (a {type(bad).__name__})")
+    try:
+        out: F64 = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise exc(f"{name} must be {what}") from None
+    return out
+
+
+# Elements (and array dtype kinds) that are not real numbers, though NumPy converts them.
+_NOT_REAL = (str, bytes, bool, np.bool_, complex, np.complexfloating)
+_NOT_REAL_KINDS = "USbcVmM"
+
+
+def _first_not_real(value: ArrayLike) -> object | None:
+    """The first element of value that is not a real number, or None."""
+    if isinstance(value, np.ndarray) and value.dtype.kind != "O":
+        return value.flat[0] if value.dtype.kind in _NOT_REAL_KINDS and value.size else None
+    # As objects: a float dtype would turn a list's True or "2" into a number silently.
+    elements = value if isinstance(value, np.ndarray) else np.asarray(value, dtype=object)
+    return next((x for x in elements.flat if isinstance(x, _NOT_REAL)), None)
+
+
 def points(
     name: str, value: ArrayLike, exc: type[ValueError] = ArgumentError
 ) -> tuple[F64, tuple[int, ...]]:
-    """value as finite (N, 2) float64 points, plus the leading shape of the (..., 2) array
-    given, to give results back in."""
-    try:
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise exc(f"{name} must be an array of (x, y) points") from None
+    """value as finite (N, 2) float64 points (real numbers: see ``real_array``), plus the
+    leading shape of the (..., 2) array given, to give results back in."""
+    a = real_array(name, value, exc, "an array of (x, y) points")
     if a.ndim == 0 or a.shape[-1] != 2:
         raise exc(f"{name} must have shape (..., 2), got {a.shape}")
     flat = a.reshape(-1, 2)

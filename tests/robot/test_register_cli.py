@@ -213,8 +213,8 @@ def test_a_wrong_touch_is_named_and_nothing_is_written(
     argv = ["register", "--calibration", str(OLD_FILE), "--points", str(points), "-o", str(out)]
     assert main(argv) == 1
     captured = capsys.readouterr()
-    assert "Point 2 is touch.csv line 4 (dot 126)." in captured.out
-    assert "nothing written" in captured.err and "point 2 on line 4 (dot 126)" in captured.err
+    assert "Touch again: dot 126 (line 4) of touch.csv." in captured.out
+    assert "nothing written" in captured.err and "(dot 126 (line 4))" in captured.err
     assert not out.exists()
     # Left out on request: written, the outlier recorded.
     assert main([*argv, "--drop-outliers", "--json"]) == 0
@@ -298,13 +298,13 @@ def test_locate_and_run_robot_frame_need_a_registration(
 ) -> None:
     image, _ = parts_png
     assert main(["locate", str(image), "--calibration", str(OLD_FILE), "--frame", "robot"]) == 1
-    assert "frame='robot' needs a registration" in capfd.readouterr().err
+    assert "--frame robot needs a calibration registered" in capfd.readouterr().err
     folder = tmp_path / "frames"
     folder.mkdir()
     (folder / "0.png").write_bytes(image.read_bytes())
     argv = ["run", "--source", str(folder), "--calibration", str(OLD_FILE)]
     assert main([*argv, "--frame", "robot"]) == 1
-    assert "frame='robot' needs a registration" in capfd.readouterr().err
+    assert "--frame robot needs a calibration registered" in capfd.readouterr().err
     assert main(argv) == 0
     assert json.loads(capfd.readouterr().out.splitlines()[0])["coords"] == "board"
 

@@ -81,9 +81,10 @@ from planarcal.homography import (
     reprojection_errors,
     transform_points,
 )
+from planarcal.robot.handedness import Handedness
 from planarcal.robot.output_frame import Coords, board_to_robot, checked_frame, default_frame
 from planarcal.robot.registration import RobotFrame
-from planarcal.robot.touch_pairs import plane_points
+from planarcal.robot.touch_pairs import board_extent, plane_points
 from planarcal.robot.transform_fit import Model
 
 # Other modules and old code import these from here; they live in the modules named above.
@@ -433,6 +434,7 @@ class Calibration:
         model: Model = "rigid",
         outlier_mm: float | None = None,
         drop_outliers: bool = False,
+        handedness: Handedness | None = None,
     ) -> Calibration:
         """This calibration registered to a robot's base frame (a new Calibration with
         ``robot_frame`` set) from point pairs: robot points (N, 2) or (N, 3) with z, in mm,
@@ -444,10 +446,14 @@ class Calibration:
         * ``image_px``: N-point, where the camera saw the part the robot placed (N, 2), px;
           mapped through this calibration, their 1-sigma goes into the fit's noise floor.
 
-        ``model``, ``robot_z``, ``outlier_mm`` and ``drop_outliers`` as in RobotFrame.fit.
+        ``model``, ``robot_z``, ``outlier_mm``, ``drop_outliers`` and ``handedness`` as in
+        RobotFrame.fit; the board's extent is the area its quality is judged over.
         ArgumentError (an index off the board, malformed points), BoardError (dots, but no
-        board recorded), RegistrationError (pairs that cannot fix the model)."""
-        plane, plane_std = plane_points(self, dots=dots, board_mm=board_mm, image_px=image_px)
+        board recorded), RegistrationError (pairs that cannot fix the model, or touches on one
+        line with no hand given)."""
+        plane, plane_std, dot_index = plane_points(
+            self, dots=dots, board_mm=board_mm, image_px=image_px
+        )
         frame = RobotFrame.fit(
             plane,
             robot_mm,
@@ -456,6 +462,9 @@ class Calibration:
             outlier_mm=outlier_mm,
             drop_outliers=drop_outliers,
             plane_std_mm=plane_std,
+            handedness=handedness,
+            dots=dot_index,
+            work_area_mm=board_extent(self),
         )
         return self.with_robot_frame(frame)
 

@@ -4,7 +4,10 @@ write the calibration with the registration (atomically).
 
 A touch named as an outlier (on the wrong dot, a mistyped coordinate) is not averaged into a
 saved registration: unless ``--drop-outliers`` leaves it out, nothing is written and the
-command exits 1, naming the CSV line to touch again."""
+command exits 1, naming the dot and the CSV line to touch again. A registration judged poor
+(by its leave-one-out error or by the map's own error at the board's corners) is not written
+either unless ``--force`` asks for it; touches on one line with no hand given
+(``--handedness``, ``--no-mirror``) are refused before a fit."""
 
 from __future__ import annotations
 
@@ -16,8 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from planarcal.calib.calibration import Calibration
-from planarcal.robot.summary import quality
-from planarcal.robot.touch_csv import COLUMN_SETS, read_touch_csv
+from planarcal.robot.handedness import HANDEDNESS
+from planarcal.robot.registration import RobotFrame
+from planarcal.robot.summary import USABLE_MM, judged_mm, quality
+from planarcal.robot.touch_csv import COLUMN_SETS, TouchPoints, read_touch_csv
 from planarcal.robot.transform_fit import MODELS
 
 
@@ -30,7 +35,9 @@ def add_parser(subcommands: Any) -> argparse.ArgumentParser:
         "point pairs in a CSV, print each pair's residual and the fit's quality, and save the "
         "calibration with the registration: 'locate' and 'run' then give robot mm. The CSV "
         "has a header and one of the column sets " + "; ".join(COLUMN_SETS) + " (mm; image "
-        "in px). A dot's index is k = row x cols + col, 0 the origin dot.",
+        "in px). A dot's index is k = row x cols + col, 0 the origin dot. Touches on one line "
+        "need the hand given (--handedness, --no-mirror); a poor registration is written "
+        "only with --force.",
     )
     p.add_argument("--calibration", required=True, type=Path, help="file from 'calibrate'")
     p.add_argument("--points", required=True, type=Path, help="the touch-point CSV")
@@ -54,6 +61,27 @@ def add_parser(subcommands: Any) -> argparse.ArgumentParser:
         action="store_true",
         help="leave named outliers out of the fit (otherwise nothing is written)",
     )
+    hand = p.add_mutually_exclusive_group()
+    hand.add_argument(
+        "--handedness",
+        choices=HANDEDNESS,
+        default=None,
+        help="the robot frame's hand with z up from the table: right (the usual; the map "
+        "mirrors the board) or left; default: from the touches, which must then not lie on "
+        "one line",
+    )
+    hand.add_argument(
+        "--no-mirror",
+        dest="handedness",
+        action="store_const",
+        const="left",
+        help="the map does not mirror the board (the same as --handedness left)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="write a registration judged poor (otherwise nothing is written)",
+    )
     p.add_argument(
         "-o",
         "--output",
@@ -68,7 +96,8 @@ def add_parser(subcommands: Any) -> argparse.ArgumentParser:
 
 def main(args: argparse.Namespace) -> int:
     """Runs ``planarcal register``: 0 when the registration was written, 1 when a named
-    outlier kept it from being written; errors propagate (the CLI reports them)."""
+    outlier or a poor judgement (without --force) kept it from being written; errors
+    propagate (the CLI reports them)."""
     cal = Calibration.load(args.calibration)
     touches = read_touch_csv(args.points)
     registered = cal.register(
@@ -80,12 +109,12 @@ def main(args: argparse.Namespace) -> int:
         model=args.model,
         outlier_mm=args.outlier_mm,
         drop_outliers=args.drop_outliers,
+        handedness=args.handedness,
     )
     frame = registered.robot_frame
     assert frame is not None
-    refused = bool(frame.outliers) and not frame.dropped_outliers
-    saved = None if refused else registered.save(args.output)
-    where = [f"Point {i} is {args.points.name} {touches.describe(i)}." for i in frame.outliers]
+    refusal = _refusal(frame, touches, args)
+    saved = None if refusal else registered.save(args.output)
     if args.json:
         out: dict[str, Any] = {
             "calibration_file": None if saved is None else str(saved),
@@ -94,27 +123,40 @@ def main(args: argparse.Namespace) -> int:
             "lines": list(touches.lines),
             "quality": quality(frame),
             "written": saved is not None,
+            "refused": refusal,
             "replaced_registration": cal.robot_frame is not None and saved is not None,
             "registration": _json_ready(frame.to_dict()),
         }
         print(json.dumps(out, allow_nan=False))
     else:
-        print(frame.summary())
-        for line in where:
-            print(line)
+        print(frame.summary(lines=touches.lines))
+        for i in frame.outliers:
+            print(f"Touch again: {touches.describe(i)} of {args.points.name}.")
         if saved is not None:
             replaced = " (replacing its earlier registration)" if cal.robot_frame else ""
             print(f"Saved the calibration with the registration to {saved}{replaced}.")
-    if refused:
-        names = "; ".join(f"point {i} on {touches.describe(i)}" for i in frame.outliers)
-        print(
-            f"planarcal register: nothing written: {args.points} has touches that look like "
-            f"the wrong point ({names}); touch again and re-run, or give --drop-outliers to "
-            "leave them out",
-            file=sys.stderr,
-        )
+    if refusal:
+        print(f"planarcal register: nothing written: {refusal}", file=sys.stderr)
         return 1
     return 0
+
+
+def _refusal(frame: RobotFrame, touches: TouchPoints, args: argparse.Namespace) -> str | None:
+    """Why the registration must not be written, or None."""
+    if frame.outliers and not frame.dropped_outliers:
+        names = "; ".join(touches.describe(i) for i in frame.outliers)
+        return (
+            f"{args.points} has touches that look like the wrong point ({names}); touch again "
+            "and re-run, or give --drop-outliers to leave them out"
+        )
+    if quality(frame) == "poor" and not args.force:
+        return (
+            f"the registration is poor ({judged_mm(frame):.3g} mm: leave-one-out RMS "
+            f"{frame.leave_one_out_rms_mm:.3g} mm, the map's own 1-sigma "
+            f"{frame.corner_std_mm:.3g} mm at the board's corners, more than {USABLE_MM:g} "
+            "mm); check the pairing and touch again, or give --force to write it all the same"
+        )
+    return None
 
 
 def _json_ready(value: Any) -> Any:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -16,9 +17,20 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal.errors import ArgumentError, CalibrationFileError, RegistrationError
-from planarcal.robot.outliers import find_outliers, leave_one_out
+from planarcal.robot.handedness import (
+    MIN_HAND_Z,
+    Handedness,
+    check_hand_determined,
+    hand_margin,
+    mirrored_of,
+)
+from planarcal.robot.outliers import MAX_OUTLIERS, OutlierSearch, find_outliers, leave_one_out
 from planarcal.robot.plane_height import PlaneHeight, fit_plane_height, tilt_warnings
-from planarcal.robot.prediction_error import parameter_covariance, prediction_std_mm
+from planarcal.robot.prediction_error import (
+    noise_sigma_mm,
+    parameter_covariance,
+    prediction_std_mm,
+)
 from planarcal.robot.summary import registration_summary
 from planarcal.robot.transform_fit import (
     F64,
@@ -26,7 +38,8 @@ from planarcal.robot.transform_fit import (
     Model,
     apply,
     check_geometry,
-    fit_either_hand,
+    fit,
+    fit_hand,
 )
 
 # What to_dict writes and from_dict reads.
@@ -34,6 +47,9 @@ FORMAT = "planarcal.robot_frame"
 VERSION = 1
 # How far a stored transform may differ from the refit of its stored pairs (relative).
 STORED_TRANSFORM_TOLERANCE = 1e-6
+# The largest coordinate (mm) a pair may have: 1 km is beyond any robot cell, and it keeps the
+# fit's sums of squares far from overflow.
+MAX_COORDINATE_MM = 1e6
 
 
 def _frozen(a: ArrayLike) -> F64:
@@ -57,7 +73,12 @@ class RobotFrame:
     the fit left them out. ``plane`` is the plane's height and tilt when z was given.
     ``plane_std_mm`` is each board point's own 1-sigma error (RMS distance, mm) where the
     board points were measured rather than known (N-point pairs mapped from pixels), else
-    None."""
+    None. ``handedness`` is the hand given to the fit ("right", "left"; None: the touches'),
+    ``dots`` the board dot index of each pair when the pairs were given as dots (the table
+    and the messages name the pairs by them), ``work_area_mm`` the corners ((x0, y0), (x1,
+    y1)) of the board area the map serves (the board's extent; None: the touched points'),
+    where the judgement looks at the map's own error. ``outlier_search_capped``: the outlier
+    search stopped after MAX_OUTLIERS removals with a touch still above the threshold."""
 
     model: Model
     reflected: bool
@@ -80,6 +101,10 @@ class RobotFrame:
     plane: PlaneHeight | None
     warnings: tuple[str, ...]
     plane_std_mm: F64 | None = None
+    handedness: Handedness | None = None
+    dots: tuple[int, ...] | None = None
+    work_area_mm: F64 | None = None
+    outlier_search_capped: bool = False
 
     @classmethod
     def fit(
@@ -92,6 +117,9 @@ class RobotFrame:
         outlier_mm: float | None = None,
         drop_outliers: bool = False,
         plane_std_mm: ArrayLike | None = None,
+        handedness: Handedness | None = None,
+        dots: ArrayLike | None = None,
+        work_area_mm: ArrayLike | None = None,
     ) -> RobotFrame:
         """The registration fitted to pairs of board points (N, 2) and robot points (N, 2),
         or (N, 3) with z (or z as ``robot_z``), all in mm. ``outlier_mm`` is the leave-one-out
@@ -99,33 +127,45 @@ class RobotFrame:
         leave-one-out error of the other points without it); ``drop_outliers`` refits without
         them. ``plane_std_mm`` (N,): the board points' own 1-sigma errors (mm) where they were
         measured (N-point pairs: image px mapped through the calibration); they set a floor
-        under the touch noise that ``std_mm`` assumes. ArgumentError for malformed arguments,
-        RegistrationError for pairs that cannot fix the model."""
+        under the touch noise that ``std_mm`` assumes. ``handedness``: the robot frame's hand
+        with z up from the table, "right" (a mirrored map: the usual) or "left" (not
+        mirrored), for rigid and similarity; None takes it from the touches, which must then
+        lie off one line by well over their noise (RegistrationError otherwise, naming the
+        touches at the line's ends). ``dots`` (N,): the board dot index of each pair, for
+        the table and the messages. ``work_area_mm``: points (K, 2) whose bounding box is the
+        area the map serves (the board's extent), where the judgement (``quality``) looks at
+        the map's own error. ArgumentError for malformed arguments, RegistrationError for
+        pairs that cannot fix the model."""
         if model not in MODELS:
             raise ArgumentError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
         if not isinstance(drop_outliers, bool):
             raise ArgumentError(f"drop_outliers must be True or False, got {drop_outliers!r}")
+        mirrored = mirrored_of(handedness)
         threshold_given = (
             None if outlier_mm is None else arguments.positive("outlier_mm", outlier_mm)
         )
         plane, robot, z = _pairs(plane_mm, robot_mm, robot_z)
         plane_std = _plane_std(plane_std_mm, len(plane))
+        dot_index = _dots(dots, len(plane))
+        area = _work_area(work_area_mm)
         check_geometry(plane, robot, model)
-
-        outliers, threshold = find_outliers(plane, robot, model, threshold_given)
-
-        used = np.ones(len(plane), dtype=bool)
-        if drop_outliers:
-            used[list(outliers)] = False
-        matrix, reflected = fit_either_hand(plane[used], robot[used], model)
-        residuals = np.hypot(*(apply(matrix, plane) - robot).T)
-        loo = residuals.copy()  # a dropped point's fit is already the fit without it
-        loo[used] = leave_one_out(plane[used], robot[used], model, reflected)
-        rotation_deg, scale = _rotation_and_scale(matrix, model, reflected)
+        try:
+            fitted = _Fitted.of(plane, robot, model, mirrored, threshold_given, drop_outliers)
+            fitted.check_hand(plane, plane_std, mirrored, dot_index)
+        except (np.linalg.LinAlgError, FloatingPointError, OverflowError) as e:
+            # A safeguard: _pairs bounds the coordinates, so this is not a path.
+            raise RegistrationError(f"the point pairs cannot be fitted ({e})") from None
+        matrix, used = fitted.matrix, fitted.used
+        rotation_deg, scale = _rotation_and_scale(matrix, model, fitted.reflected)
         height = None if z is None else fit_plane_height(robot[used], z[used])
+        warnings = (
+            *tilt_warnings(height, z is not None),
+            *fitted.hand_warnings(plane, robot, mirrored),
+            *_capped_warning(fitted.search),
+        )
         return cls(
             model=model,
-            reflected=reflected,
+            reflected=fitted.reflected,
             plane_to_robot=_frozen(matrix),
             robot_to_plane=_frozen(np.linalg.inv(matrix)),
             rotation_deg=rotation_deg,
@@ -133,19 +173,28 @@ class RobotFrame:
             plane_mm=_frozen(plane),
             robot_mm=_frozen(robot),
             robot_z_mm=None if z is None else _frozen(z),
-            residuals_mm=_frozen(residuals),
-            leave_one_out_mm=_frozen(loo),
-            rms_mm=float(np.sqrt(np.mean(residuals[used] ** 2))),
-            max_mm=float(residuals[used].max()),
-            leave_one_out_rms_mm=float(np.sqrt(np.mean(loo[used] ** 2))),
-            outliers=outliers,
+            residuals_mm=_frozen(fitted.residuals),
+            leave_one_out_mm=_frozen(fitted.loo),
+            rms_mm=float(np.sqrt(np.mean(fitted.residuals[used] ** 2))),
+            max_mm=float(fitted.residuals[used].max()),
+            leave_one_out_rms_mm=float(np.sqrt(np.mean(fitted.loo[used] ** 2))),
+            outliers=fitted.search.outliers,
             dropped_outliers=drop_outliers,
             outlier_mm=threshold_given,
-            outlier_threshold_mm=threshold,
+            outlier_threshold_mm=fitted.search.threshold_mm,
             plane=height,
-            warnings=tilt_warnings(height, z is not None),
+            warnings=warnings,
             plane_std_mm=None if plane_std is None else _frozen(plane_std),
+            handedness=handedness,
+            dots=dot_index,
+            work_area_mm=None if area is None else _frozen(area),
+            outlier_search_capped=fitted.search.capped,
         )
+
+    def pair_name(self, index: int) -> str:
+        """How the table and the messages name pair ``index``: "dot k" (its board dot) when
+        the pairs were given as dots, else "touch i" (its row, from 0)."""
+        return _namer(self.dots)(index)
 
     @property
     def used(self) -> NDArray[np.bool_]:
@@ -200,6 +249,23 @@ class RobotFrame:
         std = prediction_std_mm(self.plane_to_robot, centre, cov, flat, self.model, self.reflected)
         return std.reshape(lead)
 
+    @property
+    def corners_mm(self) -> F64:
+        """The four corners (4, 2) of the area the judgement covers: ``work_area_mm``, or the
+        bounding box of the touched points used."""
+        box = self.work_area_mm
+        if box is None:
+            used = self.plane_mm[self.used]
+            box = np.array([used.min(axis=0), used.max(axis=0)])
+        (x0, y0), (x1, y1) = box
+        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+
+    @functools.cached_property
+    def corner_std_mm(self) -> float:
+        """The map's own 1-sigma (mm) at the worst corner of the area it serves
+        (``corners_mm``): how well the touches' layout fixes it where parts will be."""
+        return float(self.std_mm(self.corners_mm).max())
+
     def robot_std_mm(self, points_mm: ArrayLike, board_std_mm: ArrayLike) -> F64:
         """The 1-sigma error (RMS distance, mm) in the robot frame of board points (..., 2)
         known to ``board_std_mm`` (...): the board error carried through the map (unchanged
@@ -216,13 +282,16 @@ class RobotFrame:
         out: F64 = np.sqrt((self.distance_gain * board) ** 2 + own**2)
         return out
 
-    def summary(self) -> str:
-        """The residual table and the fit's quality in words, with what to do if it is poor."""
-        return registration_summary(self)
+    def summary(self, lines: Sequence[int] | None = None) -> str:
+        """The transform, the residual table and the fit's quality in words, with what to do
+        if it is poor; ``lines`` (N,): each pair's line in the file it came from, a column of
+        the table."""
+        return registration_summary(self, lines)
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict: the pairs and the options (what from_dict refits), the transform
-        and the fit's measures (what from_dict checks and a reader can see)."""
+        """A JSON-ready dict: the pairs and the options (what from_dict refits: the model, the
+        outlier options, the hand given, the dots and the work area), the transform and the
+        fit's measures (what from_dict checks and a reader can see)."""
 
         def number(x: float) -> float | None:
             return x if math.isfinite(x) else None
@@ -250,6 +319,11 @@ class RobotFrame:
             "plane": None if self.plane is None else self.plane.to_dict(),
             "warnings": list(self.warnings),
             "plane_std_mm": None if self.plane_std_mm is None else self.plane_std_mm.tolist(),
+            "handedness": self.handedness,
+            "dots": None if self.dots is None else list(self.dots),
+            "work_area_mm": None if self.work_area_mm is None else self.work_area_mm.tolist(),
+            "outlier_search_capped": self.outlier_search_capped,
+            "corner_std_mm": number(self.corner_std_mm),
         }
 
     @classmethod
@@ -273,6 +347,10 @@ class RobotFrame:
                 outlier_mm=data["outlier_mm"],
                 drop_outliers=data["drop_outliers"],
                 plane_std_mm=data.get("plane_std_mm"),
+                # Absent from files written before they existed (which refit as before).
+                handedness=data.get("handedness"),
+                dots=data.get("dots"),
+                work_area_mm=data.get("work_area_mm"),
             )
             stored = np.asarray(data["plane_to_robot"], dtype=np.float64)
             reflected, outliers = data["reflected"], data["outliers"]
@@ -301,10 +379,9 @@ def _pairs(
     plane, lead = arguments.points("plane_mm", plane_mm)
     if len(lead) != 1:
         raise ArgumentError(f"plane_mm must have shape (N, 2), got {np.shape(plane_mm)}")
-    try:
-        robot_all = np.asarray(robot_mm, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ArgumentError("robot_mm must be an array of (x, y) or (x, y, z) points") from None
+    robot_all = arguments.real_array(
+        "robot_mm", robot_mm, what="an array of (x, y) or (x, y, z) points"
+    )
     if robot_all.ndim != 2 or robot_all.shape[1] not in (2, 3):
         raise ArgumentError(f"robot_mm must have shape (N, 2) or (N, 3), got {robot_all.shape}")
     robot, _ = arguments.points("robot_mm", robot_all[:, :2])
@@ -312,10 +389,7 @@ def _pairs(
     if robot_z is not None:
         if z is not None:
             raise ArgumentError("z given twice: as robot_mm's third column and as robot_z")
-        try:
-            z = np.asarray(robot_z, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ArgumentError("robot_z must be an array of N heights") from None
+        z = arguments.real_array("robot_z", robot_z, what="an array of N heights")
         if z.shape != (len(robot),):
             raise ArgumentError(f"robot_z must have shape ({len(robot)},), got {z.shape}")
     if z is not None and not np.isfinite(z).all():
@@ -326,17 +400,30 @@ def _pairs(
             f"plane_mm and robot_mm must pair up: {len(plane)} board points, "
             f"{len(robot)} robot points"
         )
+    for name, values in (("plane_mm", plane), ("robot_mm", robot), ("robot z", z)):
+        _check_bounded(name, values)
     return plane, robot, z
+
+
+def _check_bounded(name: str, values: F64 | None) -> None:
+    """ArgumentError for a coordinate beyond MAX_COORDINATE_MM, naming its point."""
+    if values is None or not values.size:
+        return
+    size = np.abs(values).reshape(len(values), -1).max(axis=1)
+    if size.max() > MAX_COORDINATE_MM:
+        k = int(np.argmax(size > MAX_COORDINATE_MM))
+        raise ArgumentError(
+            f"{name}: point {k} is {float(size[k]):.3g} mm from the origin, beyond any robot "
+            f"cell ({MAX_COORDINATE_MM:g} mm at most): check the units and the columns",
+            k,
+        )
 
 
 def _plane_std(value: ArrayLike | None, n: int) -> F64 | None:
     """The board points' own 1-sigma errors (N,), checked: finite and >= 0."""
     if value is None:
         return None
-    try:
-        std = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ArgumentError("plane_std_mm must be an array of N errors in mm") from None
+    std = arguments.real_array("plane_std_mm", value, what="an array of N errors in mm")
     if std.shape != (n,):
         raise ArgumentError(f"plane_std_mm must have shape ({n},), got {std.shape}")
     bad = np.flatnonzero(~(np.isfinite(std) & (std >= 0)))
@@ -357,3 +444,138 @@ def _rotation_and_scale(
     angle = math.degrees(math.atan2(linear[1, 0], linear[0, 0]))
     scale = float(math.hypot(linear[0, 0], linear[1, 0]))
     return angle, (1.0 if model == "rigid" else scale)
+
+
+def _dots(value: ArrayLike | None, n: int) -> tuple[int, ...] | None:
+    """The board dot index of each pair (N,), checked: whole numbers >= 0 (not bools)."""
+    if value is None:
+        return None
+    try:
+        items = np.asarray(value, dtype=object)
+    except (TypeError, ValueError):
+        raise ArgumentError("dots must be a list of N dot indices") from None
+    if items.shape != (n,):
+        raise ArgumentError(f"dots must have shape ({n},), got {items.shape}")
+    out = []
+    for i, v in enumerate(items.tolist()):
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            raise ArgumentError(f"dots: {v!r} (pair {i}) is not a dot index (a whole number)", i)
+        out.append(v)
+    return tuple(out)
+
+
+def _work_area(value: ArrayLike | None) -> F64 | None:
+    """The bounding box ((x0, y0), (x1, y1)) of the points (K, 2) given, or None."""
+    if value is None:
+        return None
+    flat, _ = arguments.points("work_area_mm", value)
+    if not len(flat):
+        raise ArgumentError("work_area_mm must hold at least one point")
+    _check_bounded("work_area_mm", flat)
+    return np.array([flat.min(axis=0), flat.max(axis=0)])
+
+
+def _namer(dots: tuple[int, ...] | None) -> Callable[[int], str]:
+    """How messages name pair i: by its dot, else by its row."""
+    if dots is None:
+        return lambda i: f"touch {i}"
+    return lambda i: f"dot {dots[i]}"
+
+
+def _capped_warning(search: OutlierSearch) -> tuple[str, ...]:
+    if not search.capped:
+        return ()
+    return (
+        f"the outlier search stopped after naming {MAX_OUTLIERS} touches with more still "
+        "above the threshold: not every wrong touch is named, and so many look like pairs "
+        "mispaired as a whole (the order of the points, the board's origin, the units)",
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class _Fitted:
+    """The fit's steps: the outlier search, the fit of the points used, and each point's
+    residual (``residual_xy`` (N, 2), ``residuals`` (N,)) and leave-one-out error."""
+
+    model: Model
+    search: OutlierSearch
+    used: NDArray[np.bool_]
+    matrix: F64
+    reflected: bool
+    residual_xy: F64
+    residuals: F64
+    loo: F64
+
+    @classmethod
+    def of(
+        cls,
+        plane: F64,
+        robot: F64,
+        model: Model,
+        mirrored: bool | None,
+        outlier_mm: float | None,
+        drop_outliers: bool,
+    ) -> _Fitted:
+        search = find_outliers(plane, robot, model, outlier_mm, mirrored)
+        used = np.ones(len(plane), dtype=bool)
+        if drop_outliers:
+            used[list(search.outliers)] = False
+        matrix, reflected = fit_hand(plane[used], robot[used], model, mirrored)
+        residual_xy = apply(matrix, plane) - robot
+        residuals = np.hypot(*residual_xy.T)
+        loo = residuals.copy()  # a dropped point's fit is already the fit without it
+        loo[used] = leave_one_out(plane[used], robot[used], model, reflected)
+        return cls(model, search, used, matrix, reflected, residual_xy, residuals, loo)
+
+    @property
+    def trusted(self) -> NDArray[np.bool_]:
+        """The points not named outliers (dropped or not)."""
+        mask = np.ones(len(self.residuals), dtype=bool)
+        mask[list(self.search.outliers)] = False
+        return mask
+
+    def check_hand(
+        self,
+        plane: F64,
+        plane_std: F64 | None,
+        mirrored: bool | None,
+        dots: tuple[int, ...] | None,
+    ) -> None:
+        """RegistrationError unless the touches not named outliers fix the hand (or it was
+        given), or when an affine fit's hand is not the one given."""
+        trusted = self.trusted
+        sigma = noise_sigma_mm(
+            self.residual_xy[trusted], self.model, None if plane_std is None else plane_std[trusted]
+        )
+        index = np.flatnonzero(trusted)
+        name = _namer(dots)
+        check_hand_determined(
+            plane[trusted], sigma, self.model, mirrored is not None, lambda k: name(int(index[k]))
+        )
+        if self.model == "affine" and mirrored is not None and self.reflected != mirrored:
+            raise RegistrationError(
+                f"the touches give an affine map that {_mirrors(self.reflected)}, but the hand "
+                f"given says it {_mirrors(mirrored)}: check the pairs and the hand"
+            )
+
+    def hand_warnings(self, plane: F64, robot: F64, mirrored: bool | None) -> tuple[str, ...]:
+        """A warning when the touches fix the other hand than the one given."""
+        if mirrored is None or self.model == "affine":  # affine's hand is checked
+            return ()
+        p, q = plane[self.used], robot[self.used]
+        other = fit(p, q, self.model, not mirrored)
+        other_xy = apply(other, p) - q
+        other_rms = float(np.sqrt(np.mean(np.sum(other_xy**2, axis=1))))
+        given_rms = float(np.sqrt(np.mean(self.residuals[self.used] ** 2)))
+        sigma = noise_sigma_mm(other_xy, self.model)
+        if other_rms >= given_rms or hand_margin(p, sigma) < MIN_HAND_Z:
+            return ()
+        return (
+            f"the touches show the other hand: a map that {_mirrors(not mirrored)} fits them "
+            f"with an RMS of {other_rms:.3g} mm, the hand given ({_mirrors(mirrored)}) with "
+            f"{given_rms:.3g} mm; check the hand given",
+        )
+
+
+def _mirrors(mirrored: bool) -> str:
+    return "mirrors" if mirrored else "does not mirror"

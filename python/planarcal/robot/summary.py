@@ -1,9 +1,16 @@
-"""A registration in words: the residual table, point by point, and the fit's quality with
-what a user should do when it is poor (touch again, add points, check the pairing)."""
+"""A registration in words: the transform, the residual table, point by point, and the fit's
+quality with what a user should do when it is poor (touch again, add points, check the
+pairing).
+
+The quality is judged on two figures, the worse deciding: the leave-one-out RMS (how well the
+touches agree with each other) and the map's own 1-sigma at the worst corner of the area it
+serves, the board (how well their layout fixes the map where the parts will be: touches in a
+cluster or along one edge fit each other well and still turn the map at the far corner)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -18,33 +25,42 @@ USABLE_MM = 1.0
 SCALE_WARNING = 0.005
 
 
+def judged_mm(frame: RobotFrame) -> float:
+    """The figure the quality is read from (mm): the larger of the leave-one-out RMS and the
+    map's own 1-sigma at the worst corner of the area it serves (``corner_std_mm``)."""
+    return max(frame.leave_one_out_rms_mm, frame.corner_std_mm)
+
+
 def quality(frame: RobotFrame) -> str:
-    """The fit in a word, by its leave-one-out RMS: "excellent", "good", "usable", "poor", or
+    """The fit in a word, by ``judged_mm``: "excellent", "good", "usable", "poor", or
     "unchecked" (too few points for a leave-one-out error)."""
-    loo = frame.leave_one_out_rms_mm
-    if not math.isfinite(loo):
+    judged = judged_mm(frame)
+    if not math.isfinite(frame.leave_one_out_rms_mm):
         return "unchecked"
-    if loo <= EXCELLENT_MM:
+    if judged <= EXCELLENT_MM:
         return "excellent"
-    if loo <= GOOD_MM:
+    if judged <= GOOD_MM:
         return "good"
-    return "usable" if loo <= USABLE_MM else "poor"
+    return "usable" if judged <= USABLE_MM else "poor"
 
 
-def registration_summary(frame: RobotFrame) -> str:
-    """The residual table and the quality in words."""
-    lines = [_headline(frame), "", *_table(frame), "", *_verdict(frame)]
-    lines += [f"warning: {w}" for w in frame.warnings]
-    return "\n".join(lines)
+def registration_summary(frame: RobotFrame, lines: Sequence[int] | None = None) -> str:
+    """The transform, the residual table (with each pair's file line, if given) and the
+    quality in words."""
+    lines_out = [_headline(frame), _transform(frame), "", *_table(frame, lines), ""]
+    lines_out += [*_verdict(frame)]
+    lines_out += [f"warning: {w}" for w in frame.warnings]
+    return "\n".join(lines_out)
 
 
 def _headline(frame: RobotFrame) -> str:
     used = int(frame.used.sum())
     parts = [f"{frame.model} registration from {used} of {len(frame.plane_mm)} point pairs"]
+    source = "as given" if frame.handedness is not None else "from the touches"
     parts.append(
-        "mirrored (board and robot frames of opposite handedness)"
+        f"mirrored (board and robot frames of opposite handedness, {source})"
         if frame.reflected
-        else "not mirrored"
+        else f"not mirrored ({source})"
     )
     if frame.rotation_deg is not None:
         parts.append(f"rotation {frame.rotation_deg:.3f} deg")
@@ -58,10 +74,32 @@ def _headline(frame: RobotFrame) -> str:
     return "; ".join(parts)
 
 
-def _table(frame: RobotFrame) -> list[str]:
+def _transform(frame: RobotFrame) -> str:
+    """The fitted map in numbers: robot = linear x board + translation."""
+    tx, ty = frame.plane_to_robot[:2, 2]
+    translation = f"translation ({tx:.3f}, {ty:.3f}) mm"
+    if frame.rotation_deg is None or frame.scale is None:
+        (a, b), (c, d) = frame.plane_to_robot[:2, :2]
+        return f"robot = A board + t: A = [[{a:.6f}, {b:.6f}], [{c:.6f}, {d:.6f}]], {translation}"
+    mirror = "the board's y axis mirrored, then " if frame.reflected else ""
+    return (
+        f"robot = scale x rotation x board + t: {mirror}rotation {frame.rotation_deg:.3f} deg, "
+        f"scale {frame.scale:.6f}, {translation}; the robot frame {_hand(frame)}"
+    )
+
+
+def _hand(frame: RobotFrame) -> str:
+    # A board seen from the front has y clockwise from x: a mirrored map is a robot frame
+    # that is right-handed with z up.
+    return "right-handed (z up)" if frame.reflected else "left-handed (z up)"
+
+
+def _table(frame: RobotFrame, lines: Sequence[int] | None) -> list[str]:
+    name_column = "dot" if frame.dots is not None else "touch"
+    line_head = "" if lines is None else f" {'line':>5}"
     rows = [
-        f"{'point':>5} {'board x':>9} {'board y':>9} {'robot x':>9} {'robot y':>9} "
-        f"{'resid mm':>9} {'l-o-o mm':>9}"
+        f"{name_column:>5}{line_head} {'board x':>9} {'board y':>9} {'robot x':>9} "
+        f"{'robot y':>9} {'resid mm':>9} {'l-o-o mm':>9}"
     ]
     outliers = set(frame.outliers)
     for i, ((bx, by), (rx, ry), r, loo) in enumerate(
@@ -71,20 +109,25 @@ def _table(frame: RobotFrame) -> list[str]:
         if i in outliers:
             mark = "  outlier (dropped)" if frame.dropped_outliers else "  outlier"
         loo_text = f"{loo:9.3f}" if math.isfinite(loo) else f"{'-':>9}"
-        rows.append(f"{i:5d} {bx:9.2f} {by:9.2f} {rx:9.2f} {ry:9.2f} {r:9.3f} {loo_text}{mark}")
+        label = frame.dots[i] if frame.dots is not None else i
+        line = "" if lines is None else f" {lines[i]:5d}"
+        rows.append(
+            f"{label:5d}{line} {bx:9.2f} {by:9.2f} {rx:9.2f} {ry:9.2f} {r:9.3f} {loo_text}{mark}"
+        )
     rows.append(
         f"RMS {frame.rms_mm:.3f} mm, max {frame.max_mm:.3f} mm, "
         f"leave-one-out RMS {frame.leave_one_out_rms_mm:.3f} mm"
     )
-    # The map's own error where it is best known and at the edge of what was touched: what
-    # it adds to every position's 1-sigma in the robot frame.
+    # The map's own error where it is best known, at the edge of what was touched and at the
+    # corners of the area it serves: what it adds to every position's 1-sigma there.
     used = frame.plane_mm[frame.used]
     own = frame.std_mm(used)
     centre = float(frame.std_mm(used.mean(axis=0)))
+    area = "the board's corners" if frame.work_area_mm is not None else "the touched area's corners"
     rows.append(
         f"The map's own 1-sigma: {centre:.3f} mm at the touched points' centre, up to "
-        f"{float(own.max()):.3f} mm at the touched points (touch noise "
-        f"{frame.noise_mm:.3f} mm per axis); it grows beyond them"
+        f"{float(own.max()):.3f} mm at the touched points and {frame.corner_std_mm:.3f} mm at "
+        f"{area} (touch noise {frame.noise_mm:.3f} mm per axis)"
     )
     return rows
 
@@ -92,34 +135,17 @@ def _table(frame: RobotFrame) -> list[str]:
 def _verdict(frame: RobotFrame) -> list[str]:
     out: list[str] = []
     if frame.outliers:
-        names = ", ".join(str(i) for i in frame.outliers)
+        names = ", ".join(frame.pair_name(i) for i in frame.outliers)
         action = (
             "left out of the fit"
             if frame.dropped_outliers
             else "kept in the fit (--drop-outliers, or drop_outliers=True, leaves them out)"
         )
         out.append(
-            f"Point(s) {names}: leave-one-out error above {frame.outlier_threshold_mm:.3g} mm, "
-            f"a touch on the wrong dot or a mistyped coordinate; {action}. Touch them again."
+            f"Outlier(s) {names}: leave-one-out error above {frame.outlier_threshold_mm:.3g} "
+            f"mm, a touch on the wrong dot or a mistyped coordinate; {action}. Touch them again."
         )
-    loo = frame.leave_one_out_rms_mm
-    if not math.isfinite(loo):
-        out.append("Too few points for a leave-one-out check: add touch points across the board.")
-    elif loo <= EXCELLENT_MM:
-        out.append(f"Excellent: {loo:.3f} mm leave-one-out RMS, about a robot's repeatability.")
-    elif loo <= GOOD_MM:
-        out.append(f"Good: {loo:.3f} mm leave-one-out RMS.")
-    elif loo <= USABLE_MM:
-        out.append(
-            f"Usable but coarse: {loo:.3f} mm leave-one-out RMS. Check the tool centre point, "
-            "touch each dot at its centre, and add points spread across the board."
-        )
-    else:
-        out.append(
-            f"Poor: {loo:.3f} mm leave-one-out RMS. Check that each robot point pairs with its "
-            "dot (the order, the board's origin), that both are in mm, and the tool centre "
-            "point; then touch again."
-        )
+    out.append(_rating(frame))
     used = int(frame.used.sum())
     if used < 5:
         out.append(f"Only {used} points: 5 or more, spread across the board, show a bad touch.")
@@ -133,3 +159,32 @@ def _verdict(frame: RobotFrame) -> list[str]:
             f"by {abs(frame.scale - 1) * 100:.2f} %. Check the printed board's scale."
         )
     return out
+
+
+def _rating(frame: RobotFrame) -> str:
+    """The quality in a sentence: the figure that decided it and what to do about it."""
+    loo, corner = frame.leave_one_out_rms_mm, frame.corner_std_mm
+    if not math.isfinite(loo):
+        return "Too few points for a leave-one-out check: add touch points across the board."
+    word = quality(frame)
+    figures = f"{loo:.3f} mm leave-one-out RMS, {corner:.3f} mm 1-sigma at the " + (
+        "board's corners" if frame.work_area_mm is not None else "touched area's corners"
+    )
+    if corner > loo and word != "excellent":
+        return (
+            f"{word.capitalize()}: {figures}. The touches fix the map poorly away from them: "
+            "touch dots nearer the board's corners, spread over the board."
+        )
+    if word == "excellent":
+        return f"Excellent: {figures}, about a robot's repeatability."
+    if word == "good":
+        return f"Good: {figures}."
+    if word == "usable":
+        return (
+            f"Usable but coarse: {figures}. Check the tool centre point, touch each dot at its "
+            "centre, and add points spread across the board."
+        )
+    return (
+        f"Poor: {figures}. Check that each robot point pairs with its dot (the order, the "
+        "board's origin), that both are in mm, and the tool centre point; then touch again."
+    )

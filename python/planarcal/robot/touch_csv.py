@@ -61,14 +61,15 @@ class TouchPoints:
     lines: tuple[int, ...]
 
     def describe(self, index: int) -> str:
-        """Pair ``index`` as a user finds it in the file: its line and its board side."""
+        """Pair ``index`` as a user finds it in the file: its dot (or its row from 0 and its
+        board side) and its line, as the register table names them."""
         where = f"line {self.lines[index]}"
         if self.dots is not None:
-            return f"{where} (dot {self.dots[index]})"
+            return f"dot {self.dots[index]} ({where})"
         assert self.board is not None
         x, y = self.board[index]
         unit = "px" if self.kind == "image" else "mm"
-        return f"{where} ({x:g}, {y:g} {unit})"
+        return f"touch {index} ({where}: {x:g}, {y:g} {unit})"
 
 
 MAX_FILE_BYTES = 2**20
@@ -97,7 +98,7 @@ def read_touch_csv(path: str | os.PathLike[str]) -> TouchPoints:
         )
     header_line, header_text = rows[0]
     delimiter = _delimiter(header_text)
-    header = [h.strip().lower() for h in _split(header_text, delimiter)]
+    header = [h.strip().lower() for h in _split(header_text, delimiter, name, header_line)]
     kind, columns = _kind(header, name, header_line)
     if len(rows) == 1:
         raise ArgumentError(f"{name} has a header but no points (line {header_line})")
@@ -105,7 +106,7 @@ def read_touch_csv(path: str | os.PathLike[str]) -> TouchPoints:
     values: dict[str, list[float]] = {c: [] for c in columns}
     lines = []
     for number, line in rows[1:]:
-        fields = [f.strip() for f in _split(line, delimiter)]
+        fields = [f.strip() for f in _split(line, delimiter, name, number)]
         if len(fields) != len(header):
             raise ArgumentError(
                 f"{name} line {number}: {len(fields)} fields, the header has {len(header)} "
@@ -140,8 +141,13 @@ def _delimiter(header: str) -> str:
     return ","
 
 
-def _split(line: str, delimiter: str) -> list[str]:
-    return next(csv.reader([line], delimiter=delimiter))
+def _split(line: str, delimiter: str, name: str, number: int) -> list[str]:
+    """The fields of one line; ArgumentError naming it where the csv module cannot read it (a
+    field over its size limit, a NUL byte)."""
+    try:
+        return next(csv.reader([line], delimiter=delimiter))
+    except csv.Error as e:
+        raise ArgumentError(f"{name} line {number}: not a CSV row ({e})") from None
 
 
 def _kind(header: list[str], name: str, line: int) -> tuple[Kind, list[str]]:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal.errors import ArgumentError, BoardError
@@ -29,10 +29,11 @@ def plane_points(
     dots: ArrayLike | None = None,
     board_mm: ArrayLike | None = None,
     image_px: ArrayLike | None = None,
-) -> tuple[F64, F64 | None]:
+) -> tuple[F64, F64 | None, tuple[int, ...] | None]:
     """The board points (N, 2) in mm of exactly one of ``dots`` (N,), ``board_mm`` (N, 2) or
-    ``image_px`` (N, 2), and their own 1-sigma errors (N,) for image points (None for dots and
-    board mm, which are exact by definition of the board's frame)."""
+    ``image_px`` (N, 2), their own 1-sigma errors (N,) for image points (None for dots and
+    board mm, which are exact by definition of the board's frame), and the dot indices (N,)
+    when given as dots."""
     given = [
         name
         for name, v in (("dots", dots), ("board_mm", board_mm), ("image_px", image_px))
@@ -44,24 +45,47 @@ def plane_points(
             f"got {' and '.join(given) if given else 'none'}"
         )
     if dots is not None:
-        return dot_positions(calibration, dots), None
+        index = dot_indices(calibration, dots)
+        return dot_positions(calibration, index), None, tuple(index.tolist())
     if board_mm is not None:
         flat, lead = arguments.points("board_mm", board_mm)
         if len(lead) != 1:
             raise ArgumentError(f"board_mm must have shape (N, 2), got {np.shape(board_mm)}")
-        return flat, None
+        return flat, None, None
     assert image_px is not None  # exactly one was given
     flat, lead = arguments.points("image_px", image_px)
     if len(lead) != 1:
         raise ArgumentError(f"image_px must have shape (N, 2), got {np.shape(image_px)}")
     mm, std = calibration.image_to_world(flat, return_std=True)
-    return np.asarray(mm, dtype=np.float64), np.asarray(std, dtype=np.float64)
+    return np.asarray(mm, dtype=np.float64), np.asarray(std, dtype=np.float64), None
+
+
+def board_extent(calibration: Calibration) -> F64 | None:
+    """The corners ((x0, y0), (x1, y1)) in board mm of the calibration's board's dots (the
+    area a registration serves), or None for a calibration that records no board."""
+    board = calibration.board
+    if board is None:
+        return None
+    dots = board.world_points() * np.asarray(calibration.world_scale, dtype=np.float64)
+    out: F64 = np.array([dots.min(axis=0), dots.max(axis=0)])
+    return out
 
 
 def dot_positions(calibration: Calibration, dots: ArrayLike) -> F64:
     """The centres (N, 2) in the calibration's board mm of the dots numbered ``dots`` (N,);
     ArgumentError for an index that is not a whole number or is off the board, BoardError for
     a calibration that records no board."""
+    index = dot_indices(calibration, dots)
+    assert calibration.board is not None  # dot_indices checked
+    scale = np.asarray(calibration.world_scale, dtype=np.float64)
+    out: F64 = calibration.board.world_points()[index] * scale
+    return out
+
+
+def dot_indices(calibration: Calibration, dots: ArrayLike) -> NDArray[np.int64]:
+    """The dot indices ``dots`` (N,) checked against the calibration's board: ArgumentError
+    for an index that is not a whole number or is off the board, BoardError for a calibration
+    that records no board."""
     board = calibration.board
     if board is None:
         raise BoardError(
@@ -90,6 +114,4 @@ def dot_positions(calibration: Calibration, dots: ArrayLike) -> F64:
                 i,
             )
         index[i] = value
-    scale = np.asarray(calibration.world_scale, dtype=np.float64)
-    out: F64 = board.world_points()[index] * scale
-    return out
+    return index

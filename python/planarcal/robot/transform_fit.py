@@ -82,7 +82,7 @@ def fit(plane_mm: F64, robot_mm: F64, model: Model, reflected: bool) -> F64:
     """The 3 x 3 matrix of the least-squares transform plane -> robot; for rigid and
     similarity with determinant of the sign ``reflected`` asks (ignored for affine)."""
     if model == "affine":
-        return _fit_affine(plane_mm, robot_mm)
+        return fit_affine(plane_mm, robot_mm)
     return _fit_umeyama(plane_mm, robot_mm, model == "similarity", reflected)
 
 
@@ -91,13 +91,21 @@ def fit_either_hand(plane_mm: F64, robot_mm: F64, model: Model) -> tuple[F64, bo
     handednesses are fitted and the smaller sum of squared residuals kept (the proper one on a
     tie, so the choice is deterministic)."""
     if model == "affine":
-        m = _fit_affine(plane_mm, robot_mm)
+        m = fit_affine(plane_mm, robot_mm)
         return m, bool(np.linalg.det(m[:2, :2]) < 0)
     proper = fit(plane_mm, robot_mm, model, False)
     mirror = fit(plane_mm, robot_mm, model, True)
     cost_proper = float(np.sum((apply(proper, plane_mm) - robot_mm) ** 2))
     cost_mirror = float(np.sum((apply(mirror, plane_mm) - robot_mm) ** 2))
     return (mirror, True) if cost_mirror < cost_proper else (proper, False)
+
+
+def fit_hand(plane_mm: F64, robot_mm: F64, model: Model, mirrored: bool | None) -> tuple[F64, bool]:
+    """The least-squares transform and whether it reflects: of the hand ``mirrored`` asks for
+    (rigid and similarity), or the better of the two (None; affine, whose hand is its own)."""
+    if mirrored is None or model == "affine":
+        return fit_either_hand(plane_mm, robot_mm, model)
+    return fit(plane_mm, robot_mm, model, mirrored), mirrored
 
 
 def _fit_umeyama(plane_mm: F64, robot_mm: F64, with_scale: bool, reflected: bool) -> F64:
@@ -118,7 +126,8 @@ def _fit_umeyama(plane_mm: F64, robot_mm: F64, with_scale: bool, reflected: bool
     return m
 
 
-def _fit_affine(plane_mm: F64, robot_mm: F64) -> F64:
+def fit_affine(plane_mm: F64, robot_mm: F64) -> F64:
+    """The 3 x 3 matrix of the least-squares affine transform plane -> robot."""
     # Centred for conditioning: the board's coordinates may sit hundreds of mm from 0.
     mu_p = plane_mm.mean(axis=0)
     mu_q = robot_mm.mean(axis=0)

@@ -1,0 +1,105 @@
+"""Whether touch points fix a registration's hand: if the map from the board to the robot
+mirrors or not, and the hand a user can state instead.
+
+Touches on one line cannot tell. Mirrored in that line, each touch lands where it was, so both
+hands fit them equally well, and a part off the line lands at its mirror image, twice its
+distance from the line away: hundreds of mm off under a residual of a few hundredths. Near a
+line the data choose the hand by the sign of sum d_i (+-d_i + e_i) (d_i each touch's distance
+from the touches' main line, e_i its touch noise across it, sigma per coordinate), so they pick
+the right one with z = sqrt(sum d_i^2) / sigma standard deviations to spare. The hand is taken
+from the data only at z >= MIN_HAND_Z; below that a registration is refused unless the hand is
+given.
+
+The hand given is the robot frame's, with its z axis up from the table (towards the camera):
+"right" (the usual robot base frame) or "left". The board's frame seen from the front has its
+y axis clockwise from its x axis (x along a row, y down a column), so a right-handed robot
+frame is its mirror image: "right" is a mirrored map, "left" one that does not mirror."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Literal
+
+import numpy as np
+
+from planarcal.errors import ArgumentError, RegistrationError
+from planarcal.robot.transform_fit import F64, Model
+
+Handedness = Literal["right", "left"]
+HANDEDNESS: tuple[Handedness, ...] = ("right", "left")
+
+# sqrt(sum d_i^2) / sigma at which the data fix the hand: the wrong hand then needs a 10-sigma
+# noise draw (a wrong hand puts parts hundreds of mm off, so the margin is wide).
+MIN_HAND_Z = 10.0
+
+
+def mirrored_of(handedness: object) -> bool | None:
+    """Whether the hand given makes the map mirror (None: not given); ArgumentError for a value
+    that is not "right", "left" or None."""
+    if handedness is None:
+        return None
+    if handedness not in HANDEDNESS:
+        raise ArgumentError(
+            f"handedness must be 'right', 'left' or None (from the touches), got {handedness!r}"
+        )
+    return handedness == "right"
+
+
+def handedness_of(mirrored: bool) -> Handedness:
+    """The robot frame's hand (z up) of a map that mirrors or not."""
+    return "right" if mirrored else "left"
+
+
+def across_line_mm(plane_mm: F64) -> float:
+    """sqrt(sum d_i^2) (mm): the root-sum-square distance of the points from their main line
+    (the smaller singular value of the centred points); 0 on a line."""
+    if len(plane_mm) < 2:
+        return 0.0
+    s = np.linalg.svd(plane_mm - plane_mm.mean(axis=0), compute_uv=False)
+    return float(s[-1])
+
+
+def line_ends(plane_mm: F64) -> tuple[int, int]:
+    """The indices of the two points farthest apart along the points' main line."""
+    centred = plane_mm - plane_mm.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    along = centred @ vt[0]
+    first, last = int(np.argmin(along)), int(np.argmax(along))
+    return (first, last) if first < last else (last, first)
+
+
+def hand_margin(plane_mm: F64, sigma_mm: float) -> float:
+    """z = sqrt(sum d_i^2) / sigma: how many standard deviations of the touch noise keep the
+    data's choice of hand from flipping."""
+    return across_line_mm(plane_mm) / sigma_mm if sigma_mm > 0 else float("inf")
+
+
+def check_hand_determined(
+    plane_mm: F64,
+    sigma_mm: float,
+    model: Model,
+    hand_given: bool,
+    name: Callable[[int], str],
+) -> None:
+    """RegistrationError when the points (board mm) leave the hand free under the touch noise
+    ``sigma_mm`` (per coordinate) and it was not given (or the model is affine, whose hand is
+    its points'): naming the two touches at the ends of their line (``name`` of an index)."""
+    if hand_given and model != "affine":
+        return
+    rss = across_line_mm(plane_mm)
+    if rss >= MIN_HAND_Z * sigma_mm:
+        return
+    first, last = line_ends(plane_mm)
+    fix = (
+        "or give the hand (handedness='right' for a right-handed robot frame with z up, "
+        "'left' otherwise; --handedness right|left or --no-mirror)"
+        if model != "affine"
+        else "or fit model='rigid' or 'similarity' with the hand given (handedness=, --handedness)"
+    )
+    raise RegistrationError(
+        f"the touch points lie (nearly) on one line: their distances from it come to "
+        f"{rss:.3g} mm (root-sum-square), under {MIN_HAND_Z:g} x the touch noise of "
+        f"{sigma_mm:.3g} mm, so they do not show whether the robot frame is the board's "
+        "mirror image, and a part off the line could be placed at its mirror image; touch "
+        f"at least one dot off the line through {name(first)} and {name(last)}, {fix}"
+    )
