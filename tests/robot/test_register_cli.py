@@ -35,6 +35,8 @@ LINEAR = LINEAR @ np.diag([1.0, -1.0])
 OFFSET = np.array([412.0, -233.0])
 DOTS = [0, 13, 126, 139, 46, 93]
 TOUCH_NOISE_MM = 0.05
+# Dots on the board's first row: they leave the map's hand free.
+ROW_DOTS = [0, 4, 9, 13]
 
 
 def _robot(board_mm: F64) -> F64:
@@ -53,11 +55,11 @@ def _write(path: Path, text: str, encoding: str = "utf-8") -> Path:
     return path
 
 
-def _dot_csv(robot: F64, *, z: float | None = None) -> str:
+def _dot_csv(robot: F64, *, z: float | None = None, dots: list[int] = DOTS) -> str:
     header = "dot,robot_x,robot_y" + (",robot_z" if z is not None else "")
     rows = [
         f"{d},{x:.4f},{y:.4f}" + (f",{z}" if z is not None else "")
-        for d, (x, y) in zip(DOTS, robot, strict=True)
+        for d, (x, y) in zip(dots, robot, strict=True)
     ]
     return "\n".join([header, *rows]) + "\n"
 
@@ -263,6 +265,23 @@ def test_n_point_and_board_mm_csvs_register(
         ("dot,robot_x,robot_y\n0,1,2\n140,3,4\n13,5,6\n", r"dot 1: index 140 is off the board"),
         ("dot,robot_x,robot_y\n0,1,2\n13,3,4\n", r"at least 3 point pairs"),
         ("dot,robot_x,robot_y,extra\n0,1,2,3\n", r"unknown column"),
+        # Issue 21: a field over the csv module's limit, a coordinate beyond any cell, and
+        # touches on one row of the board (which leave the map's hand free).
+        (
+            "dot,robot_x,robot_y\n0,1," + "2" * 200_000 + "\n",
+            r"line 2: not a CSV row \(field larger than field limit",
+        ),
+        ("dot,robot_x,robot_y\n0,1e300,2\n13,3,4\n126,5,6\n", r"point 0 is 1e\+300 mm"),
+        (
+            "dot,robot_x,robot_y\n"
+            + "".join(
+                f"{d},{x:.3f},{y:.3f}\n"
+                for d, (x, y) in zip(
+                    ROW_DOTS, _robot(pc.CircleGridBoard().world_points()[ROW_DOTS]), strict=True
+                )
+            ),
+            r"one line.*off the line through dot 0 and dot 13.*--handedness",
+        ),
     ],
 )
 def test_unusable_input_exits_1_with_one_line(tmp_path: Path, csv_text: str, match: str) -> None:
@@ -291,6 +310,85 @@ def test_unusable_input_exits_1_with_one_line(tmp_path: Path, csv_text: str, mat
     assert len(lines) == 1 and lines[0].startswith("planarcal register: error:"), done.stderr
     assert re.search(match, lines[0]), lines[0]
     assert not out.exists()
+
+
+def _register(argv: list[str]) -> subprocess.CompletedProcess[str]:
+    """``planarcal register`` with argv, in a child process."""
+    return subprocess.run(
+        [sys.executable, "-m", "planarcal", "register", "--calibration", str(OLD_FILE), *argv],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+def test_the_text_output_gives_the_transform_and_each_touch_by_dot_and_line(
+    tmp_path: Path,
+) -> None:
+    points = _write(tmp_path / "touch.csv", "# touched today\n" + _dot_csv(_touches()))
+    out = tmp_path / "calib.json"
+    done = _register(["--points", str(points), "-o", str(out)])
+    assert done.returncode == 0, done.stderr
+    text = done.stdout
+    assert re.search(r"translation \(41[12]\.\d{3}, -23[23]\.\d{3}\) mm", text), text
+    assert re.search(r"rotation -12[67]\.\d{3} deg, scale 1\.000000", text)
+    assert "the board's y axis mirrored" in text and "right-handed (z up)" in text
+    header = next(line for line in text.splitlines() if "board x" in line)
+    assert header.split()[:2] == ["dot", "line"]
+    rows = {line.split()[0]: line.split() for line in text.splitlines() if line[:5].strip()}
+    # Dot 126 is the CSV's line 5 (a comment and the header above), at (0, 180) mm.
+    assert rows["126"][1:4] == ["5", "0.00", "180.00"]
+
+
+def test_a_row_of_touches_registers_with_the_hand_given(
+    tmp_path: Path, parts_png: tuple[Path, F64], capsys: pytest.CaptureFixture[str]
+) -> None:
+    board = pc.CircleGridBoard().world_points()[ROW_DOTS]
+    noise = np.random.default_rng(4).normal(0, TOUCH_NOISE_MM, board.shape)
+    points = _write(tmp_path / "row.csv", _dot_csv(_robot(board) + noise, dots=ROW_DOTS))
+    out = tmp_path / "calib.json"
+    argv = ["register", "--calibration", str(OLD_FILE), "--points", str(points), "-o", str(out)]
+    assert main(argv) == 1
+    assert "through dot 0 and dot 13" in capsys.readouterr().err
+    assert not out.exists()
+    assert main([*argv, "--handedness", "right", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["registration"]["handedness"] == "right"
+    assert result["registration"]["reflected"] is True
+    # The parts, off the row, land where the robot finds them.
+    image, truth_board = parts_png
+    assert main(["locate", str(image), "--calibration", str(out), "--json"]) == 0
+    mm = np.array([o["world_mm"] for o in json.loads(capsys.readouterr().out)["objects"]])
+    truth = _robot(truth_board)
+    gap = np.hypot(*(mm[:, None, :] - truth[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+    assert gap.max() < 0.5, gap
+    # --no-mirror states the other hand: fitted as stated (the row cannot tell).
+    assert main([*argv, "--no-mirror", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["registration"]["handedness"] == "left"
+    assert result["registration"]["reflected"] is False
+    frame = Calibration.load(out).robot_frame
+    assert frame is not None and frame.handedness == "left" and frame.dots == tuple(ROW_DOTS)
+
+
+def test_a_poor_registration_is_written_only_with_force(tmp_path: Path) -> None:
+    # Touches 3 mm off (a wrong tool centre point): poor, and nothing written without --force.
+    board = pc.CircleGridBoard().world_points()[DOTS]
+    noise = np.random.default_rng(9).normal(0, 3.0, board.shape)
+    points = _write(tmp_path / "touch.csv", _dot_csv(_robot(board) + noise))
+    out = tmp_path / "calib.json"
+    done = _register(["--points", str(points), "-o", str(out)])
+    assert done.returncode == 1, done
+    assert "Poor:" in done.stdout and "Saved" not in done.stdout
+    err = done.stderr.strip().splitlines()
+    assert len(err) == 1 and "nothing written: the registration is poor" in err[0]
+    assert "--force" in err[0]
+    assert not out.exists()
+    forced = _register(["--points", str(points), "-o", str(out), "--force", "--json"])
+    assert forced.returncode == 0, forced.stderr
+    result = json.loads(forced.stdout)
+    assert result["quality"] == "poor" and result["written"] and out.exists()
 
 
 def test_locate_and_run_robot_frame_need_a_registration(
