@@ -562,6 +562,15 @@ def test_trigger_during_a_camera_fault_gets_an_error_line_never_silence(
         (["-o", "tcp-listen://127.0.0.1:0", "--client-buffer", "10000000000"], "1 to 1000000"),
         (["--template", "{xx}"], r"unknown field \{xx\}; the fields are frame"),
         (["--format", "csv", "--template", "{id}"], "goes with the template format"),
+        (["--template", "{id},{area:,.0f}"], r"field area \(\{area:,.0f\}\) can render a comma"),
+        (["--max-clients", "4"], "--max-clients goes with --output tcp-listen://, not '-'"),
+        (["-o", "tcp-listen://127.0.0.1:0", "--max-clients", "0"], "1 to 10,000 controllers"),
+        (["-o", "tcp-listen://127.0.0.1:0", "--client-idle-timeout", "5"], "goes with --trigger"),
+        (
+            ["-o", "tcp-listen://127.0.0.1:0", "--trigger", "--client-idle-timeout", "-1"],
+            "0 \\(never",
+        ),
+        (["-o", "tcp-listen://127.0.0.1:0", "--trigger", "--client-idle-timeout", "nan"], "86400"),
     ],
 )
 def test_bad_output_arguments_are_refused_before_the_camera_opens(
