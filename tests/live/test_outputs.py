@@ -187,12 +187,12 @@ def test_tcp_reader_that_stops_reading_never_stalls_the_sender(
         durations.append(clock() - t)
     total = clock() - began
     durations.sort()
-    # A sender that waited on the socket would take seconds; here each send is a buffer
-    # append. The maximum is bounded loosely (the OS may preempt the test on a busy machine),
-    # the 99.9th percentile tightly.
-    assert total < 2.0, f"{n} sends took {total:.2f} s"
-    assert durations[int(n * 0.999)] < 0.002, f"99.9th percentile {durations[int(n * 0.999)]}"
-    assert durations[-1] < 0.1, f"slowest send {durations[-1] * 1e3:.1f} ms"
+    # A send that waited on the socket would wait for the stall limit (5 s); here each send
+    # is a buffer append (microseconds). The bounds are loose: a shared machine under load
+    # (10 on 2 cores) preempts the test for milliseconds at a time.
+    assert total < 20.0, f"{n} sends took {total:.2f} s"
+    assert durations[n // 2] < 0.0005, f"median {durations[n // 2] * 1e3:.2f} ms"
+    assert durations[-1] < 1.0, f"slowest send {durations[-1] * 1e3:.1f} ms"
     s = out.stats
     assert s.connected and s.errors == 0
     assert s.dropped > n // 2  # the kernel's buffers hold a few thousand lines at most
@@ -202,7 +202,7 @@ def test_tcp_reader_that_stops_reading_never_stalls_the_sender(
     assert s.sent + s.dropped + s.pending == n
     began = time.monotonic()
     out.close()
-    assert time.monotonic() - began < 1.0
+    assert time.monotonic() - began < 3.0  # flush_timeout 0.1 s, not the 5 s stall limit
     s = out.stats
     assert s.sent + s.dropped == n and s.pending == 0
     assert "did not take the last lines" in (s.last_error or "")
@@ -319,7 +319,7 @@ def test_tcp_without_a_controller_drops_quickly_and_keeps_trying(outputs: list[O
         slowest = max(slowest, time.perf_counter() - t)
         n += 1
         time.sleep(0.001)
-    assert slowest < 0.1
+    assert slowest < 1.0  # never the connect timeout (2 s) nor a back-off
     s = out.stats
     assert not s.connected
     assert (s.sent, s.dropped, s.reconnects) == (0, n, 0)
@@ -335,7 +335,7 @@ def test_tcp_close_does_not_wait_for_the_back_off(outputs: list[Output]) -> None
     assert wait_for(lambda: out.stats.connect_attempts >= 1 and out.stats.errors >= 1)
     began = time.monotonic()
     out.close()
-    assert time.monotonic() - began < 0.5
+    assert time.monotonic() - began < 2.5  # not the 5 s back-off
 
 
 def test_close_from_another_thread_while_sending(
