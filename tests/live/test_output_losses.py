@@ -1,7 +1,8 @@
 """Lines that cannot be delivered, as a user of `planarcal run` meets them: the real command
 in a subprocess (``python -m planarcal run``) on a real video file of a rendered scene
 (test_server's), writing to a device that is always full (``/dev/full``: a full disk), to a
-``tcp://`` address where nothing listens, and to a controller on loopback that reads. A loss
+file that fills mid-run (a file size limit), to a ``tcp://`` address where nothing listens,
+and to a controller on loopback that reads. A loss
 is warned about on stderr while it happens (the first at once, then rate-limited), the
 summary says which kind of loss it was, and a run that delivered nothing it was asked to
 deliver exits with status 1."""
@@ -85,6 +86,51 @@ def test_a_full_disk_is_warned_about_at_once_and_the_run_fails(
     assert output["dropped"] == output["dropped_write_failed"] == FRAMES
     assert output["dropped_full_buffer"] == 0
     assert f"error: no line was delivered to /dev/full: all {FRAMES} were lost" in err
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="needs RLIMIT_FSIZE")
+def test_a_disk_that_fills_mid_run_is_warned_about_and_what_was_written_is_whole(
+    scene: tuple[Path, Path, np.ndarray], tmp_path: Path
+) -> None:
+    calib, video, truth = scene
+    path = tmp_path / "positions.jsonl"
+
+    def limit_file_size() -> None:  # in the child: its writes past 2,000 bytes fail (EFBIG)
+        import resource  # noqa: PLC0415
+
+        resource.setrlimit(resource.RLIMIT_FSIZE, (2000, 2000))
+
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "planarcal",
+            "run",
+            "--source",
+            str(video),
+            "--calibration",
+            str(calib),
+            "--min-area",
+            "50",
+            "-o",
+            str(path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        preexec_fn=limit_file_size,
+    )
+    err = done.stderr
+    # Some lines were delivered: the run succeeds, and says what it lost while it lost it.
+    assert done.returncode == 0, err
+    output = summary_of(err)["output"]
+    sent, lost = output["sent"], output["dropped_write_failed"]
+    assert 0 < sent < FRAMES and sent + lost == FRAMES, output
+    assert f"planarcal run: {path}: 1 line lost: cannot write to {path}: File too large" in err
+    lines = path.read_text().splitlines()  # only whole lines: a cut one was taken back
+    assert len(lines) == sent
+    served.check_positions(served.parse_json(lines), truth)
 
 
 def test_a_controller_that_is_not_listening_is_warned_about_and_the_run_fails(
