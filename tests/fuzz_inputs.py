@@ -1389,6 +1389,7 @@ def case_calibration_edit(rng: np.random.Generator, index: int = 0) -> Case:
 # -- the trigger server (issue 21) -------------------------------------------------------------
 
 TRIGGER = b"TRIGGER"
+MAX_REQUEST_BYTES = 1024  # output_server's: a longer line is not a request
 # Beyond its trigger timeout (and an idle client's eviction), how long a well-behaved
 # controller may wait for its answer, s: longer is a request lost.
 ANSWER_GRACE_S = 3.0
@@ -1596,7 +1597,8 @@ def session_problem(session: dict[str, Any], peers: list[Peer], full: bool) -> s
         if full and goodbye and len(lines) == 1:
             continue  # turned away at the cap, with the reason
         replies = len(lines) - goodbye
-        sent = peer.send.count(b"\n")
+        # An unfinished line is answered once it is too long to be a request.
+        sent = peer.send.count(b"\n") + (len(peer.send.rsplit(b"\n", 1)[-1]) > MAX_REQUEST_BYTES)
         if replies > max(sent, 1):
             return f"bad result: {peer.kind} client sent {sent} lines, got {len(lines)} replies"
         if peer.expect is not None and len(lines) == peer.expect:
