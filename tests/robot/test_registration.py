@@ -611,3 +611,22 @@ def test_robot_points_that_are_not_real_numbers_are_refused(robot: Any, match: s
         RobotFrame.fit(robot, plane + 100.0)
     with pytest.raises(pc.ArgumentError, match="robot_z must hold real numbers"):
         RobotFrame.fit(plane, plane + 100.0, robot_z=["1", "2", "3"])
+
+
+def test_a_dict_from_before_the_hand_option_still_refits() -> None:
+    rng = np.random.default_rng(14)
+    truth = _mirrored_robot(rng)
+    dots = [0, 13, 126, 139, 46]
+    robot = _map(truth, BOARD[dots]) + rng.normal(0, TOUCH_NOISE_MM, (5, 2))
+    frame = RobotFrame.fit(BOARD[dots], robot)
+    old = frame.to_dict()
+    for key in ("handedness", "dots", "work_area_mm", "outlier_search_capped", "corner_std_mm"):
+        del old[key]
+    assert _fields(RobotFrame.from_dict(old)) == _fields(frame)
+    # One saved from touches on a line (the hand then guessed) is refused, saying why.
+    row = RobotFrame.fit(BOARD[ROW_DOTS], _map(truth, BOARD[ROW_DOTS]), handedness="left")
+    guessed = {**row.to_dict(), "handedness": None}
+    with pytest.raises(pc.CalibrationFileError, match="one line"):
+        RobotFrame.from_dict(guessed)
+    with pytest.raises(pc.CalibrationFileError, match="handedness must be"):
+        RobotFrame.from_dict({**row.to_dict(), "handedness": "mirrored"})

@@ -458,9 +458,10 @@ def _dots(value: ArrayLike | None, n: int) -> tuple[int, ...] | None:
         raise ArgumentError(f"dots must have shape ({n},), got {items.shape}")
     out = []
     for i, v in enumerate(items.tolist()):
-        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+        whole = isinstance(v, int | np.integer) and not isinstance(v, bool | np.bool_)
+        if not whole or v < 0:
             raise ArgumentError(f"dots: {v!r} (pair {i}) is not a dot index (a whole number)", i)
-        out.append(v)
+        out.append(int(v))
     return tuple(out)
 
 
