@@ -26,12 +26,15 @@ import contextlib
 import dataclasses
 import inspect
 import json
+import logging
 import math
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import warnings
 import zlib
@@ -1399,8 +1402,6 @@ FRAME_PERIODS_S = (0.01, 0.03, 0.1)
 
 
 def _connect(port: int, timeout: float) -> Any:
-    import socket  # noqa: PLC0415
-
     sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
     sock.settimeout(timeout)
     return sock
@@ -1470,8 +1471,6 @@ def hostile_peer(rng: np.random.Generator) -> Peer:
 
 
 def _run_peer(port: int, peer: Peer, until: float, out: dict[str, Any]) -> None:
-    import socket  # noqa: PLC0415
-
     try:
         sock = _connect(port, 2.0)
     except OSError as e:
@@ -1536,19 +1535,30 @@ def trigger_session(
     """A trigger server on loopback fed a frame every `period` s, the hostile `peers` and
     `idle_peers` idle connections thrown at it, then a well-behaved controller; what each
     got, and how long close() took."""
-    import threading  # noqa: PLC0415
-
     from planarcal.live.output_server import ServerOutput  # noqa: PLC0415
 
     options: dict[str, Any] = {"trigger_word": "TRIGGER", "trigger_timeout": trigger_timeout}
     options["max_clients"] = cap
     if "idle_timeout" in inspect.signature(ServerOutput).parameters:
         options["idle_timeout"] = SERVER_IDLE_S
-    server = ServerOutput("127.0.0.1", 0, **options)
+    until = time.monotonic() + trigger_timeout + SERVER_IDLE_S + ANSWER_GRACE_S
+    # The server's reports of refusals, resets and idle closes are its business, not the
+    # judge's: kept off the campaign's output.
+    log = logging.getLogger("planarcal")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    try:
+        return _session(ServerOutput("127.0.0.1", 0, **options), peers, idle_peers, period, until)
+    finally:
+        log.setLevel(level)
+
+
+def _session(
+    server: Any, peers: list[Peer], idle_peers: int, period: float, until: float
+) -> dict[str, Any]:
     stop = threading.Event()
     feeder = threading.Thread(target=_frames, args=(server, period, stop), daemon=True)
     feeder.start()
-    until = time.monotonic() + trigger_timeout + SERVER_IDLE_S + ANSWER_GRACE_S
     idle = []
     outs: list[dict[str, Any]] = [{} for _ in peers]
     threads = [
