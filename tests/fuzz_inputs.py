@@ -1131,6 +1131,8 @@ class RegistrationCase:
     truth: RobotTruth
     plane: F64
     meaningful: bool
+    span: F64 = dataclasses.field(default_factory=lambda: np.array([260.0, 180.0]))
+    """The board's extent (mm) from its origin dot: where parts are placed."""
 
 
 def case_registration(rng: np.random.Generator) -> Case:
@@ -1194,7 +1196,8 @@ def registration_error(frame: Any, known: RegistrationCase) -> str | None:
             f"wrong answer: reflected={frame.reflected} for a map that "
             f"{'mirrors' if truth.reflected else 'does not mirror'} (rms {frame.rms_mm:.3g} mm)"
         )
-    probe = np.vstack([np.unique(known.plane, axis=0), known.plane.mean(axis=0)])
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]) * known.span
+    probe = np.vstack([np.unique(known.plane, axis=0), known.plane.mean(axis=0), corners])
     off = np.hypot(*(frame.to_robot(probe) - truth.apply(probe)).T)
     std = frame.std_mm(probe)
     bound = WRONG_ANSWER_SIGMAS * (std + truth.noise_mm) + 1e-9 * (1.0 + np.abs(probe).max())
