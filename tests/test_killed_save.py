@@ -204,7 +204,7 @@ def calibration_content(path: Path) -> dict[str, Any]:
     """The calibration file's content, loadable, without the moment it was made."""
     Calibration.load(path)
     data: dict[str, Any] = json.loads(path.read_bytes())
-    del data["created"]
+    del data["created"], data["digest"]["sha256"]["created"]
     return data
 
 

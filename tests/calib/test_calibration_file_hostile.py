@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
-from planarcal.calib.calibration_file import MAX_FILE_BYTES
+from planarcal.calib.calibration_file import FILE_VERSION, MAX_FILE_BYTES
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import CalibrationFileError
 from planarcal.synth import paper_data
@@ -177,7 +177,7 @@ def test_a_file_without_its_residuals_is_refused(plain: Calibration, tmp_path: P
         (lambda d: d["summary"].update(rms_px="0.5"), r"summary.rms_px must be .* got '0.5'"),
         (lambda d: d.update(lens_candidates="none"), "lens_candidates must be a list"),
         (lambda d: d.update(lens_note=7), "lens_note must be a string"),
-        (lambda d: d.update(lens_model=True), "unknown lens model true"),
+        (lambda d: d.update(lens_model=True), "lens_model true is unknown"),
     ],
 )
 def test_wrong_types_and_sizes_are_refused(
@@ -196,7 +196,7 @@ def test_deep_nesting_and_huge_numbers_are_refused(plain: Calibration, tmp_path:
     deep = '{"format": "planarcal-calibration", "a": ' + "[" * 100_000 + "]" * 100_000 + "}"
     with pytest.raises(CalibrationFileError, match="nested too deeply"):
         _load_text(tmp_path / "deep.json", deep)
-    huge = text.replace('"version": 3', '"version": ' + "9" * 401)
+    huge = text.replace(f'"version": {FILE_VERSION}', '"version": ' + "9" * 401)
     with pytest.raises(CalibrationFileError, match="an integer of 401 digits"):
         _load_text(tmp_path / "huge.json", huge)
     huge = text.replace('"world_mm": [[', '"world_mm": [[' + "1" * 401 + ", ", 1)

@@ -201,7 +201,12 @@ class Calibration:
                     f"the intrinsics are for {intrinsics.image_size[0]} x "
                     f"{intrinsics.image_size[1]} images, this one is {size[0]} x {size[1]}"
                 )
+        # Pixels beyond the image would be refused on load (edited): refused when made.
+        problem = calibration_file.image_points_problem(image, size)
+        if problem is not None:
+            raise ArgumentError(f"image_points: {problem} (image_size)")
         fit = fit_with_lens(world, image, solver, bool(refine), lens, size, intrinsics)
+        fit = calibration_file.fit_as_loaded(fit, world, image, size, intrinsics)
         self._init(world, image, fit, solver, bool(refine), board, size, intrinsics, (1.0, 1.0))
 
     def _init(
@@ -216,6 +221,7 @@ class Calibration:
         intrinsics: CameraIntrinsics | None,
         world_scale: tuple[float, float],
         robot_frame: RobotFrame | None = None,
+        created: str | None = None,
     ) -> None:
         self._world = world
         self._image = image
@@ -237,6 +243,9 @@ class Calibration:
         """(sx, sy): the factors ``rescaled`` applied to the board's nominal coordinates."""
         self.robot_frame = robot_frame
         """The registration of the board to the robot's base frame, or None (see register)."""
+        self.created = calibration_file.now_stamp() if created is None else created
+        """When this calibration was made (ISO 8601, UTC): kept by save and load, so that a
+        re-save of an unchanged calibration is the same file."""
 
     # -- construction from images ---------------------------------------------------------
 
@@ -320,6 +329,9 @@ class Calibration:
         )
         fit.candidates = self._fit.candidates
         fit.note = self._fit.note
+        fit = calibration_file.fit_as_loaded(
+            fit, world, self._image, self.image_size, self.intrinsics
+        )
         cal = Calibration.__new__(Calibration)
         cal._init(
             world,
@@ -421,6 +433,7 @@ class Calibration:
         cal = Calibration.__new__(Calibration)
         cal.__dict__.update(self.__dict__)
         cal.robot_frame = robot_frame
+        cal.created = calibration_file.now_stamp()  # another calibration than this one
         return cal
 
     def register(
@@ -790,9 +803,15 @@ class Calibration:
         return calibration_file.calibration_to_dict(self)
 
     @classmethod
-    def from_dict(cls, data: Any, source: str = "calibration data") -> Calibration:
-        """The calibration saved by to_dict(); CalibrationFileError if it is not one, or if
-        its homography, lens and points do not reproduce the residuals it records."""
+    def from_dict(
+        cls, data: Any, source: str = "calibration data", *, trust_edits: bool = False
+    ) -> Calibration:
+        """The calibration saved by to_dict(); CalibrationFileError, naming the field, if it
+        is not one: if its homography, lens and points do not reproduce the residuals it
+        records, if a value its other values determine does not agree with them, or (a
+        version 4 file) if a field is not what it was saved with (its digest).
+        ``trust_edits=True`` accepts a file edited on purpose: every check but the digest
+        (see ``load``)."""
         try:
             c = calibration_file.contents_from_dict(data, source)
             cal = cls.__new__(cls)
@@ -807,8 +826,11 @@ class Calibration:
                 c.intrinsics,
                 c.world_scale,
                 c.robot_frame,
+                c.created,
             )
             errors_px = cal.reprojection_errors_px
+            calibration_file.check_residuals(errors_px, c.residuals, source)
+            calibration_file.check_consistent(cal, data, source)
         except CalibrationFileError:
             raise
         except (ArgumentError, HomographyError, IntrinsicsError, LensModelError) as e:
@@ -819,18 +841,32 @@ class Calibration:
             raise CalibrationFileError(
                 f"{source}: a number too large or a value nested too deeply ({e})"
             ) from None
-        calibration_file.check_residuals(errors_px, c.residuals, source)
+        if c.version >= calibration_file.DIGEST_SINCE and not trust_edits:
+            calibration_file.check_digest(data, source)
         return cal
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Writes the calibration as human-readable JSON, atomically."""
+        """Writes the calibration as human-readable JSON, atomically, with the digest of its
+        fields. A calibration saved again unchanged (loaded, or the same object) writes the
+        same bytes."""
         return calibration_file.write_file(path, self.to_dict())
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Calibration:
-        """Reads a calibration saved by save(); CalibrationFileError if the file is not one
-        (corrupt, truncated, another format or version)."""
-        return cls.from_dict(calibration_file.read_file(path), source=repr(str(Path(path))))
+    def load(cls, path: str | os.PathLike[str], *, trust_edits: bool = False) -> Calibration:
+        """Reads a calibration saved by save(); CalibrationFileError, naming the problem, if
+        the file is not one (corrupt, truncated, another format or version), is inconsistent
+        (a value its other values determine does not agree) or was edited (its digest).
+
+        ``trust_edits=True`` is for a file changed on purpose (a note, the image size, a
+        registration removed): every check is made but the digest's, and ``save`` then
+        writes the file with a digest of its own. An edit its other values contradict (a
+        point, the board's pitch, a registration's pair) is refused even so: calibrate or
+        register again."""
+        return cls.from_dict(
+            calibration_file.read_file(path),
+            source=repr(str(Path(path))),
+            trust_edits=trust_edits,
+        )
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
         # Pickles through the same validated, versioned form as the file.

@@ -4,13 +4,22 @@ truncated or foreign file into a CalibrationFileError rather than a wrong calibr
 
 Version 3 adds ``robot_frame``: the registration to the robot (RobotFrame.to_dict: the model,
 the point pairs, the residuals), or null; refitted from its pairs on load and refused if the
-stored transform is not theirs. Versions 1 and 2 have none and load without one."""
+stored transform is not theirs. Versions 1 and 2 have none and load without one.
+
+Version 4 adds ``digest``: the SHA-256 of each other field's canonical JSON, so that a file
+edited by hand is refused, naming the field, even where the edit leaves it consistent (an
+image size, a dot diameter, a note). Files of every version are also checked for consistency:
+each value the others determine (a lens's standard errors, the registration's residuals, the
+world points as the board's dots) is re-derived and must agree, so that a file whose digest
+was recomputed still cannot carry a value its other fields contradict. Versions 1 to 3
+predate the digest and load on those checks alone."""
 
 from __future__ import annotations
 
 import dataclasses
 import datetime
 import functools
+import hashlib
 import json
 import math
 import os
@@ -21,6 +30,7 @@ from typing import TYPE_CHECKING, Any, TypeGuard
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from planarcal import _core
 from planarcal._core import RadialLens
@@ -53,8 +63,41 @@ if TYPE_CHECKING:
 F64 = NDArray[np.float64]
 
 FILE_FORMAT = CALIBRATION_FORMAT
-FILE_VERSION = 3
-READS_VERSIONS = (1, 2, 3)
+FILE_VERSION = 4
+READS_VERSIONS = (1, 2, 3, 4)
+ROBOT_FRAME_SINCE = 3
+DIGEST_SINCE = 4
+
+FIELDS = (
+    "format",
+    "version",
+    "created",
+    "planarcal_version",
+    "solver",
+    "refine",
+    "homography_world_mm_to_image_px",
+    "lens_model",
+    "lens",
+    "lens_note",
+    "lens_candidates",
+    "intrinsics",
+    "world_scale",
+    "image_size_px",
+    "board",
+    "points",
+    "summary",
+    "robot_frame",
+    "digest",
+)
+"""Every field of a version 4 file, in the order written; older versions wrote some of them."""
+ALWAYS = ("solver", "refine", "homography_world_mm_to_image_px", "points")
+"""The fields every version has."""
+
+EDIT_HINT = (
+    "a calibration file is changed by planarcal, not by hand: calibrate or register again, or, "
+    "to keep an edit made on purpose, load the file once with Calibration.load(path, "
+    "trust_edits=True) and save it (README: Calibration files)"
+)
 
 MAX_FILE_BYTES = 16 * 2**20
 """The largest calibration file read: one of the paper's board is 30 kB, one of a 100 x 100
@@ -71,6 +114,22 @@ check_residuals)."""
 ROBOT_TOLERANCE_MM = 1e-6
 """How closely a registration's stored transform must agree with its refit (see
 _robot_frame): rounding is some 1e-13 mm."""
+
+DERIVED_TOLERANCE_REL = 1e-6
+DERIVED_TOLERANCE_ABS = 1e-9
+"""How closely a value a file stores must agree with its re-derivation from the file's other
+values (see check_consistent): the same arithmetic on the same numbers agrees to some 1e-12
+relative; the margin is for another platform's rounding or iterations, and is far below
+anything an edit that matters changes."""
+
+MAX_ROBOT_MM = 1e9
+"""The largest number of mm a registration holds (a robot reaches metres; 10^9 mm is a
+thousand km): beyond it a refit or its error bars overflow, and the file could not be saved
+again."""
+
+POINT_TOLERANCE_REL = 1e-9
+"""How closely a world point must lie on its board dot, relative to the board's extent (the
+points are the dots' positions times world_scale: rounding is some 1e-16)."""
 
 # A dict or file with these is camera intrinsics (OpenCV's, ROS's, or CameraIntrinsics'
 # to_dict), not a calibration: the message says where it belongs.
@@ -101,6 +160,8 @@ class FileContents:
     world_scale: tuple[float, float]
     residuals: StoredResiduals
     robot_frame: RobotFrame | None = None
+    created: str | None = None
+    version: int = FILE_VERSION
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,13 +176,15 @@ class StoredResiduals:
     min_px: float
 
 
-def calibration_to_dict(cal: Calibration) -> dict[str, Any]:
-    """The versioned, JSON-ready form of `cal` (Calibration.to_dict)."""
-    summary = cal.summary().to_dict()
-    return {
+def calibration_to_dict(cal: Calibration, *, summary: bool = True) -> dict[str, Any]:
+    """The versioned, JSON-ready form of `cal` (Calibration.to_dict), with its digest.
+    ``summary=False`` leaves out the summary (its leave-one-out errors are the costly part)
+    and the digest: what check_consistent compares a file with. CalibrationFileError if a
+    value cannot be written (not a finite number), naming it."""
+    content: dict[str, Any] = {
         "format": FILE_FORMAT,
         "version": FILE_VERSION,
-        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "created": cal.created,
         "planarcal_version": _core.__version__,
         "solver": cal.solver,
         "refine": cal.refine,
@@ -138,20 +201,64 @@ def calibration_to_dict(cal: Calibration) -> dict[str, Any]:
             "world_mm": cal.world_points.tolist(),
             "image_px": cal.image_points.tolist(),
         },
-        "summary": {k: json_number(v) for k, v in summary.items()},
-        "robot_frame": None if cal.robot_frame is None else cal.robot_frame.to_dict(),
     }
+    if summary:
+        content["summary"] = {k: json_number(v) for k, v in cal.summary().to_dict().items()}
+    content["robot_frame"] = None if cal.robot_frame is None else cal.robot_frame.to_dict()
+    if cal.board is not None:
+        # A board that does not describe the points (Calibration(world, image, board=...)
+        # with other points) would be refused on load as edited.
+        problem = board_points_problem(cal.board, cal.world_points, cal.world_scale)
+        if problem is not None:
+            raise CalibrationFileError(f"the calibration cannot be saved: {problem}")
+    bad = _first_non_finite(content)
+    if bad is not None:
+        raise CalibrationFileError(
+            f"the calibration cannot be saved: {bad} is not a finite number (a value beyond "
+            "a float's range went into it)"
+        )
+    # What a reader parses: tuples become lists, NumPy's floats Python's.
+    content = json.loads(json.dumps(content))
+    if summary:
+        content["digest"] = {"sha256": field_digests(content)}
+    return content
+
+
+def now_stamp() -> str:
+    """The time now as a file's ``created`` writes it (ISO 8601, UTC, whole seconds)."""
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def field_digests(data: dict[str, Any]) -> dict[str, str]:
+    """The SHA-256 (hex) of each field of `data` but the digest, of its canonical JSON
+    ({"key": value} with sorted keys, no spaces, UTF-8): what a version 4 file's ``digest``
+    holds. A field per digest, so that a refusal names the field edited."""
+    out = {}
+    for key, value in data.items():
+        if key == "digest":
+            continue
+        text = json.dumps(
+            {key: value},
+            sort_keys=True,
+            separators=(",", ":"),
+            ensure_ascii=False,
+            allow_nan=False,
+        )
+        out[key] = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    return out
 
 
 def contents_from_dict(data: Any, source: str) -> FileContents:
     """The calibration a file's parsed JSON holds; CalibrationFileError if it is not one
     (`source` names it in the messages). Every field is checked for its JSON type (a number
-    is an int or a float, never a bool or a string), its shape and its range before use."""
+    is an int or a float, never a bool or a string), its shape and its range before use, and
+    the fields of its version must all be there, with none of another's."""
     if not isinstance(data, dict):
         raise CalibrationFileError(
             f"{source} is not a calibration (not a JSON object but {_json_type(data)})"
         )
-    _check_format(data, source)
+    version = _check_format(data, source)
+    _check_fields(data, version, source)
     h_data = _field(data, "homography_world_mm_to_image_px", source)
     h = _reals(h_data, (3, 3), source, "the homography is not a finite 3 x 3 matrix")
     points = _field(data, "points", source)
@@ -166,7 +273,9 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
             f"{source}: {len(world)} world and {len(image)} image points (need 4 or more, "
             "as many of each)"
         )
-    if abs(np.linalg.det(h)) == 0:
+    with np.errstate(all="ignore"):  # a determinant of huge entries is inf: not singular
+        singular = abs(np.linalg.det(h)) == 0
+    if singular:
         raise CalibrationFileError(f"{source}: the homography is singular")
     solver = _field(data, "solver", source)
     if not isinstance(solver, str) or solver not in SOLVERS:
@@ -177,8 +286,10 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
     if not isinstance(refine, bool):
         raise CalibrationFileError(f"{source}: refine must be true or false, got {_show(refine)}")
     image_size = _image_size(data.get("image_size_px"), source)
+    _check_in_image(image, image_size, source)
     board = _board(data.get("board"), len(world), source)
     fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
+    _check_on_board(board, world, world_scale, source)
     robot_frame = _robot_frame(data.get("robot_frame"), source)
     return FileContents(
         world,
@@ -192,6 +303,109 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
         world_scale,
         _stored_residuals(data, len(world), source),
         robot_frame,
+        _created(data, version, source),
+        version,
+    )
+
+
+def check_consistent(cal: Calibration, data: dict[str, Any], source: str) -> None:
+    """CalibrationFileError unless every value the file stores that the calibration it
+    describes re-derives (a lens's standard errors, the board as to_dict writes it, the whole
+    registration but its pairs, the summary's counts, names and deviations) agrees with it,
+    of the same JSON type and to DERIVED_TOLERANCE_REL: a value edited, or one that overflows
+    when re-derived (a file that could not be saved again), is named. Files of version 4 must
+    also have every field to_dict writes, and no other, at every level."""
+    strict = data.get("version") == FILE_VERSION
+    derived = calibration_to_dict(cal, summary=False)
+    for key, value in derived.items():
+        if key in ("format", "version", "created", "planarcal_version") or key not in data:
+            continue
+        _agree(data[key], value, key, strict, source)
+    _check_summary(cal, data["summary"], strict, source)
+
+
+def check_digest(data: dict[str, Any], source: str) -> None:
+    """CalibrationFileError unless a version 4 file's digest is that of its fields: each
+    field is named that is not what the file was saved with (edited by hand?)."""
+    digest = data.get("digest")
+    stored = digest.get("sha256") if isinstance(digest, dict) else None
+    if not (isinstance(digest, dict) and isinstance(stored, dict) and len(digest) == 1):
+        raise CalibrationFileError(
+            f'{source}: its digest is not a digest ({{"sha256": {{field: hex}}}}) but '
+            f"{_show(digest)}: edited by hand? {EDIT_HINT}"
+        )
+    try:
+        actual = field_digests(data)
+    except (TypeError, ValueError) as e:
+        raise CalibrationFileError(f"{source}: holds a value JSON cannot ({e})") from None
+    edited = [k for k in actual if stored.get(k) != actual[k]]
+    edited += [k for k in stored if k not in actual]
+    if edited:
+        names = ", ".join(edited)
+        raise CalibrationFileError(
+            f"{source}: {names} {'is' if len(edited) == 1 else 'are'} not what the file was "
+            f"saved with (its digest does not match): edited by hand? {EDIT_HINT}"
+        )
+
+
+def fit_as_loaded(
+    fit: PlaneFit,
+    world: F64,
+    image: F64,
+    size: tuple[int, int] | None,
+    intrinsics: CameraIntrinsics | None,
+) -> PlaneFit:
+    """`fit` as loading its file gives it: a radial lens's model rebuilt at its parameters
+    (the fit's own carries its iterations' last digits, which a file does not keep), so that
+    a calibration maps, reports and saves the same before and after a save: a re-save of an
+    unchanged calibration is the same file, byte for byte. A homography alone, or with
+    intrinsics, is built the same way either way."""
+    if fit.lens not in LENS_MODELS[1:]:
+        return fit
+    plane = plane_at(fit.h, world, image, size, fit.lens, fit.plane.lens, intrinsics)
+    return PlaneFit(plane, fit.h, fit.lens, fit.candidates, fit.note)
+
+
+def board_points_problem(
+    board: CircleGridBoard, world: F64, world_scale: tuple[float, float]
+) -> str | None:
+    """What is wrong with world points `world` as the dots of `board` (scaled by
+    `world_scale`, see Calibration.rescaled), or None: each must lie on one of the board's
+    dots, to POINT_TOLERANCE_REL of its extent. A board described otherwise than the points
+    (another pitch, layout or size) is another calibration."""
+    with np.errstate(all="ignore"):  # a huge pitch overflows: its dots are then no points'
+        dots = board.world_points()
+        nominal = world / np.asarray(world_scale, dtype=np.float64)
+    tolerance = POINT_TOLERANCE_REL * max(1.0, float(np.abs(dots).max()))
+    n = len(nominal)
+    if n <= len(dots) and np.all(np.abs(nominal - dots[:n]) <= tolerance):
+        return None  # the first n dots in order: a detection's
+    distance, _ = cKDTree(dots).query(nominal)
+    bad = np.flatnonzero(~(distance <= tolerance))
+    if not bad.size:
+        return None
+    k = int(bad[0])
+    scale = "" if world_scale == (1.0, 1.0) else f" scaled by {list(world_scale)}"
+    return (
+        f"world point {k} ({world[k][0]:g}, {world[k][1]:g}) mm is not a dot of the board "
+        f"({board.describe()}{scale})"
+    )
+
+
+def image_points_problem(image: F64, size: tuple[int, int] | None) -> str | None:
+    """What is wrong with image points `image` as pixels of images of `size` (width,
+    height), or None: each must lie within the image (pixel centres at whole numbers, so
+    from -0.5 to width - 0.5)."""
+    if size is None:
+        return None
+    limit = np.array([size[0], size[1]], dtype=np.float64) - 0.5
+    outside = np.flatnonzero(~np.all((image >= -0.5) & (image <= limit), axis=1))
+    if not outside.size:
+        return None
+    k = int(outside[0])
+    return (
+        f"image point {k} ({image[k][0]:g}, {image[k][1]:g}) px lies outside the "
+        f"{size[0]} x {size[1]} px image"
     )
 
 
@@ -267,9 +481,9 @@ def check_residuals(errors_px: F64, stored: StoredResiduals, source: str) -> Non
 # -- what a file holds, checked field by field ---------------------------------------------
 
 
-def _check_format(data: dict[str, Any], source: str) -> None:
-    """CalibrationFileError unless `data` says it is a calibration of a version read here;
-    a dict of camera intrinsics, or of no known format, is named as such."""
+def _check_format(data: dict[str, Any], source: str) -> int:
+    """The file's version; CalibrationFileError unless `data` says it is a calibration of a
+    version read here; a dict of camera intrinsics, or of no known format, is named as such."""
     if "format" not in data:
         if any(k in data for k in INTRINSICS_KEYS):
             raise CalibrationFileError(f"{source} {INTRINSICS_HINT.format(kind='JSON')}")
@@ -289,6 +503,88 @@ def _check_format(data: dict[str, Any], source: str) -> None:
             f"{source} is calibration file version {_show(version)}; this planarcal "
             f"({_core.__version__}) reads versions "
             f"{', '.join(str(v) for v in READS_VERSIONS)}"
+        )
+    return int(version)
+
+
+def _check_fields(data: dict[str, Any], version: int, source: str) -> None:
+    """CalibrationFileError for a field no version writes, a field of a later version than
+    the file's (a digest or a registration in an older file: its version was edited), or a
+    missing one of those its version always writes (a version 3 file's robot_frame, every
+    field of a version 4 file)."""
+    for key in FIELDS if version >= DIGEST_SINCE else ALWAYS:
+        if key != "summary":  # whose absence _stored_residuals explains
+            _field(data, key, source)
+    since = {"robot_frame": ROBOT_FRAME_SINCE, "digest": DIGEST_SINCE}
+    for key, first in since.items():
+        # A null registration is none, as in the versions before it.
+        if key in data and version < first and not (key == "robot_frame" and data[key] is None):
+            raise CalibrationFileError(
+                f"{source}: a version {version} file has no {key} (files have one from "
+                f"version {first}): its version was edited?"
+            )
+        if key not in data and version >= first:
+            raise CalibrationFileError(
+                f"{source} is missing the field {key} (a version {version} file always has "
+                "it: null where there is none)"
+            )
+    for key in data:
+        if key not in FIELDS:
+            raise CalibrationFileError(
+                f"{source}: unknown field {_show(key)} (not one a calibration file has: "
+                "edited by hand?)"
+            )
+
+
+def _created(data: dict[str, Any], version: int, source: str) -> str | None:
+    """When the calibration was made (ISO 8601), kept through a re-save; None for a file
+    without one."""
+    created = data.get("created")
+    if created is None and version < DIGEST_SINCE:
+        return None
+    try:
+        if not isinstance(created, str) or len(created) > 64:
+            raise ValueError
+        datetime.datetime.fromisoformat(created)
+    except ValueError:
+        raise CalibrationFileError(
+            f"{source}: created must be the time it was made (ISO 8601, as "
+            f"{now_stamp()!r}), got {_show(created)}"
+        ) from None
+    version_text = data.get("planarcal_version")
+    if not (isinstance(version_text, str) or (version_text is None and version < DIGEST_SINCE)):
+        raise CalibrationFileError(
+            f"{source}: planarcal_version must be a string, got {_show(version_text)}"
+        )
+    return created
+
+
+def _check_in_image(image: F64, size: tuple[int, int] | None, source: str) -> None:
+    problem = image_points_problem(image, size)
+    if problem is not None:
+        raise CalibrationFileError(
+            f"{source}: points.image_px: {problem} (image_size_px): the image size or the "
+            "points were edited"
+        )
+
+
+def _check_on_board(
+    board: CircleGridBoard | None, world: F64, world_scale: tuple[float, float], source: str
+) -> None:
+    """CalibrationFileError unless the world points are the board's dots (scaled by
+    world_scale), and world_scale is 1 without a board (only rescaled sets it)."""
+    if board is None:
+        if world_scale != (1.0, 1.0):
+            raise CalibrationFileError(
+                f"{source}: world_scale {list(world_scale)} without a board (a scale corrects "
+                "a board's pitch: it is [1.0, 1.0] without one)"
+            )
+        return
+    problem = board_points_problem(board, world, world_scale)
+    if problem is not None:
+        raise CalibrationFileError(
+            f"{source}: points.world_mm: {problem}: board (its pitch_mm, cols, rows or "
+            "layout), world_scale or the points were edited"
         )
 
 
@@ -359,7 +655,8 @@ def _robot_frame(robot_data: Any, source: str) -> RobotFrame | None:
     robot position silently."""
     if robot_data is None:
         return None
-    where = f"{source}: its registration to the robot"
+    _check_robot_values(robot_data, source)
+    where = f"{source}: robot_frame (its registration to the robot)"
     frame = RobotFrame.from_dict(robot_data, where)
     stored = np.asarray(robot_data["plane_to_robot"], dtype=np.float64)  # checked 3 x 3
     drift = float(np.abs(apply(stored, frame.plane_mm) - frame.to_robot(frame.plane_mm)).max())
@@ -369,6 +666,171 @@ def _robot_frame(robot_data: Any, source: str) -> RobotFrame | None:
             "where its point pairs put them (edited or corrupt)"
         )
     return frame
+
+
+def _check_robot_values(robot_data: Any, source: str) -> None:
+    """CalibrationFileError unless the registration's pairs and options are of their JSON
+    types and shapes (RobotFrame.from_dict would take the string "1" or true as 1.0) and
+    within MAX_ROBOT_MM (beyond it a refit overflows, and the file could not be saved)."""
+    if not isinstance(robot_data, dict):
+        raise CalibrationFileError(
+            f"{source}: robot_frame must be a JSON object or null, got {_show(robot_data)}"
+        )
+    plane = _robot_reals(robot_data, "plane_mm", (None, 2), source)
+    n = len(plane)
+    rows = robot_data.get("robot_mm")
+    width = len(rows[0]) if isinstance(rows, list) and rows and isinstance(rows[0], list) else 2
+    _robot_reals(robot_data, "robot_mm", (n, 3 if width == 3 else 2), source)
+    for key in ("robot_z_mm", "plane_std_mm"):
+        if robot_data.get(key) is not None:
+            _robot_reals(robot_data, key, (n,), source)
+    _reals(
+        _field(robot_data, "plane_to_robot", source, "robot_frame."),
+        (3, 3),
+        source,
+        "robot_frame.plane_to_robot",
+    )
+    outlier = robot_data.get("outlier_mm")
+    if outlier is not None and not (_is_real(outlier) and 0 < outlier <= MAX_ROBOT_MM):
+        raise CalibrationFileError(
+            f"{source}: robot_frame.outlier_mm must be null or a number of mm from 0 to "
+            f"{MAX_ROBOT_MM:g}, got {_show(outlier)}"
+        )
+    for key in ("drop_outliers", "reflected"):
+        if not isinstance(robot_data.get(key), bool):
+            raise CalibrationFileError(
+                f"{source}: robot_frame.{key} must be true or false, got "
+                f"{_show(robot_data.get(key))}"
+            )
+    if not isinstance(robot_data.get("model"), str):
+        raise CalibrationFileError(
+            f"{source}: robot_frame.model must be a string, got {_show(robot_data.get('model'))}"
+        )
+    outliers = robot_data.get("outliers")
+    if not (isinstance(outliers, list) and all(_is_int(i) for i in outliers)):
+        raise CalibrationFileError(
+            f"{source}: robot_frame.outliers must be a list of point indices, got {_show(outliers)}"
+        )
+
+
+def _robot_reals(
+    robot_data: dict[str, Any], key: str, shape: tuple[int | None, ...], source: str
+) -> F64:
+    """robot_frame[key]: finite numbers of `shape`, each within MAX_ROBOT_MM (and >= 0 for
+    the board points' errors)."""
+    what = f"robot_frame.{key}"
+    values = _reals(_field(robot_data, key, source, "robot_frame."), shape, source, what)
+    low = 0.0 if key == "plane_std_mm" else -MAX_ROBOT_MM
+    bad = np.flatnonzero(~((values >= low) & (values <= MAX_ROBOT_MM)))
+    if bad.size:
+        at = "".join(f"[{i}]" for i in np.unravel_index(int(bad[0]), values.shape))
+        raise CalibrationFileError(
+            f"{source}: {what}{at} is {float(values.flat[bad[0]])!r}: beyond a registration's "
+            f"range ({low:g} to {MAX_ROBOT_MM:g} mm)"
+        )
+    return values
+
+
+def _agree(stored: Any, derived: Any, path: str, strict: bool, source: str) -> None:
+    """CalibrationFileError, naming the entry at `path`, unless the file's value `stored`
+    is `derived` (a calibration's own re-derivation of it): the same JSON type, the same
+    strings, booleans and nulls, numbers to DERIVED_TOLERANCE_REL (and _ABS); objects with
+    the same fields (`strict`; otherwise those stored are compared, for older versions)."""
+    if isinstance(derived, dict):
+        if not isinstance(stored, dict):
+            raise CalibrationFileError(
+                f"{source}: {path} must be a JSON object, got {_show(stored)}"
+            )
+        for key, value in derived.items():
+            if key in stored:
+                _agree(stored[key], value, f"{path}.{key}", strict, source)
+            elif strict:
+                raise CalibrationFileError(f"{source} is missing the field {path}.{key}")
+        extra = [k for k in stored if k not in derived]
+        if strict and extra:
+            raise CalibrationFileError(
+                f"{source}: unknown field {path}.{extra[0]} (edited by hand?)"
+            )
+    elif isinstance(derived, list | tuple):
+        if not isinstance(stored, list) or len(stored) != len(derived):
+            raise CalibrationFileError(
+                f"{source}: {path} must be a list of {len(derived)}, got {_show(stored)}"
+            )
+        for i, (s, d) in enumerate(zip(stored, derived, strict=True)):
+            _agree(s, d, f"{path}[{i}]", strict, source)
+    elif isinstance(derived, bool | str) or derived is None:
+        if type(stored) is not type(derived) or stored != derived:
+            raise CalibrationFileError(
+                f"{source}: {path} is {_show(stored)} where the file's other fields give "
+                f"{_show(derived)} (edited or corrupt)"
+            )
+    else:
+        _agree_number(stored, float(derived), path, source)
+
+
+def _agree_number(stored: Any, derived: float, path: str, source: str) -> None:
+    if not math.isfinite(derived):
+        raise CalibrationFileError(
+            f"{source}: {path} overflows when re-derived from the file's other values "
+            "(numbers beyond any calibration's: edited or corrupt)"
+        )
+    if not _is_real(stored):
+        raise CalibrationFileError(
+            f"{source}: {path} must be a number, got {_show(stored)} (edited or corrupt)"
+        )
+    if not abs(float(stored) - derived) <= (
+        DERIVED_TOLERANCE_ABS + DERIVED_TOLERANCE_REL * abs(derived)
+    ):
+        raise CalibrationFileError(
+            f"{source}: {path} is {float(stored)!r} where the file's other fields give "
+            f"{derived!r} (edited or corrupt)"
+        )
+
+
+def _check_summary(cal: Calibration, summary: dict[str, Any], strict: bool, source: str) -> None:
+    """The summary's fields a loaded calibration re-derives cheaply (its counts, names and
+    largest deviations) must agree; the rest (leave-one-out errors, recomputed whenever a
+    summary is asked for) must be numbers >= 0 or null. The reprojection errors are
+    check_residuals'."""
+    # Only here: calibration imports this module.
+    from planarcal.calib.calibration import CalibrationSummary  # noqa: PLC0415
+
+    names = [f.name for f in dataclasses.fields(CalibrationSummary)]
+    dev = np.abs(cal.deviations_mm)
+    derived: dict[str, Any] = {
+        "n_points": len(cal.world_points),
+        "solver": cal.solver,
+        "refine": cal.refine,
+        "lens": cal.lens_model,
+        "max_abs_dx_mm": float(dev[:, 0].max()),
+        "max_abs_dy_mm": float(dev[:, 1].max()),
+    }
+    for key in names if strict else summary:
+        if key not in names:
+            raise CalibrationFileError(f"{source}: unknown field summary.{key} (edited by hand?)")
+        value = _field(summary, key, source, "summary.")
+        if key in derived:
+            _agree(value, derived[key], f"summary.{key}", strict, source)
+        elif not (value is None or (_is_real(value) and value >= 0)):
+            raise CalibrationFileError(
+                f"{source}: summary.{key} must be a number >= 0 or null, got {_show(value)}"
+            )
+
+
+def _first_non_finite(value: Any, path: str = "") -> str | None:
+    """The path ("robot_frame.plane.rms_mm") of the first float in `value` that JSON cannot
+    hold (NaN, +-inf), or None."""
+    if isinstance(value, dict):
+        items: Any = ((f"{path}.{k}" if path else str(k), v) for k, v in value.items())
+    elif isinstance(value, list | tuple):
+        items = ((f"{path}[{i}]", v) for i, v in enumerate(value))
+    else:
+        return path if isinstance(value, float) and not math.isfinite(value) else None
+    for sub_path, sub in items:
+        found = _first_non_finite(sub, sub_path)
+        if found is not None:
+            return found
+    return None
 
 
 def _stored_residuals(data: dict[str, Any], n_points: int, source: str) -> StoredResiduals:
@@ -510,7 +972,7 @@ def _fit_from_dict(
     note = data.get("lens_note", "no lens model")
     if not isinstance(lens, str) or lens not in (*LENS_MODELS, "intrinsics"):
         raise CalibrationFileError(
-            f"{source}: unknown lens model {_show(lens)} (one of "
+            f"{source}: lens_model {_show(lens)} is unknown (one of "
             f"{', '.join(LENS_MODELS)}, intrinsics)"
         )
     if not isinstance(note, str):
@@ -567,6 +1029,13 @@ def _radial_lens(lens_data: Any, lens: str, size: tuple[int, int] | None, source
         values[key] = float(value)
     if not values["scale_px"] > 0:
         raise CalibrationFileError(f"{source}: lens.scale_px must be > 0, got {values['scale_px']}")
+    # The lens frame is the image's: its unit the half-diagonal, its centre the image's
+    # unless the model fits it (k1k2c).
+    w, h = size
+    _agree_number(values["scale_px"], 0.5 * math.hypot(w, h), "lens.scale_px", source)
+    if lens != "k1k2c":
+        for i, c in enumerate(((w - 1.0) / 2.0, (h - 1.0) / 2.0)):
+            _agree_number(float(centre[i]), c, f"lens.centre_px[{i}]", source)
     try:
         return RadialLens(
             (float(centre[0]), float(centre[1])), values["scale_px"], values["k1"], values["k2"]
