@@ -34,8 +34,10 @@ IMAGE = np.array(paper_data.IMAGE_PX)
 K_WEBCAM = [[900.0, 0.0, 640.0], [0.0, 900.0, 360.0], [0.0, 0.0, 1.0]]
 V2_FILE = Path(__file__).resolve().parents[1] / "robot" / "data" / "calibration_v2.json"
 
-# Every refusal is immediate: parsing and checking a file of the paper's board takes ms.
-QUICK_S = 1.0
+# A hang guard, not a speed figure (speed is the benches'): a file of the paper's board loads
+# in milliseconds, so only a load that hangs or goes quadratic takes this long, even on a
+# machine loaded by other suites (a 1 s bound failed there once).
+QUICK_S = 30.0
 
 
 @pytest.fixture(scope="module")
