@@ -230,7 +230,7 @@ def test_collinear_points_are_refused_unless_the_hand_is_given() -> None:
         RobotFrame.fit(plane, robot, model="affine")
     # A line fixes a rotation and a scale, not the hand: refused unless it is given.
     for model in ("rigid", "similarity"):
-        with pytest.raises(pc.RegistrationError, match=r"on one line.*touch 0 and touch 5"):
+        with pytest.raises(pc.RegistrationError, match=r"near one line.*touch 0 and touch 5"):
             RobotFrame.fit(plane, robot, model=model)
         frame = RobotFrame.fit(plane, robot, model=model, handedness="right")
         assert frame.max_mm < 1e-9 and frame.reflected and frame.handedness == "right"
@@ -611,6 +611,16 @@ def test_robot_points_that_are_not_real_numbers_are_refused(robot: Any, match: s
         RobotFrame.fit(robot, plane + 100.0)
     with pytest.raises(pc.ArgumentError, match="robot_z must hold real numbers"):
         RobotFrame.fit(plane, plane + 100.0, robot_z=["1", "2", "3"])
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_robot_points_on_a_line_under_a_board_area_are_refused(model: Model) -> None:
+    # An affine fit flattens the board onto the line (a singular map, whose inverse raised
+    # numpy's LinAlgError); rigid and similarity fit it so badly that no hand shows.
+    plane = _grid()
+    robot = np.c_[plane[:, 0] + plane[:, 1], np.zeros(len(plane))] + 300.0
+    with pytest.raises(pc.RegistrationError, match=r"flattens the board|mirror image"):
+        RobotFrame.fit(plane, robot, model=model)
 
 
 def test_a_dict_from_before_the_hand_option_still_refits() -> None:

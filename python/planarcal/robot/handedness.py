@@ -97,9 +97,9 @@ def check_hand_determined(
         else "or fit model='rigid' or 'similarity' with the hand given (handedness=, --handedness)"
     )
     raise RegistrationError(
-        f"the touch points lie (nearly) on one line: their distances from it come to "
-        f"{rss:.3g} mm (root-sum-square), under {MIN_HAND_Z:g} x the touch noise of "
-        f"{sigma_mm:.3g} mm, so they do not show whether the robot frame is the board's "
-        "mirror image, and a part off the line could be placed at its mirror image; touch "
-        f"at least one dot off the line through {name(first)} and {name(last)}, {fix}"
+        f"the touch points lie too near one line for their noise to show whether the robot "
+        f"frame is the board's mirror image: their distances from it come to {rss:.3g} mm "
+        f"(root-sum-square), under {MIN_HAND_Z:g} x the touch noise of {sigma_mm:.3g} mm, and "
+        "a part off the line could be placed at its mirror image; touch at least one dot off "
+        f"the line through {name(first)} and {name(last)}, {fix}"
     )

@@ -47,6 +47,9 @@ FORMAT = "planarcal.robot_frame"
 VERSION = 1
 # How far a stored transform may differ from the refit of its stored pairs (relative).
 STORED_TRANSFORM_TOLERANCE = 1e-6
+# The smallest ratio of the fitted linear part's singular values: below it the map has no
+# usable inverse (robot_to_plane).
+MIN_SINGULAR_RATIO = 1e-6
 # The largest coordinate (mm) a pair may have: 1 km is beyond any robot cell, and it keeps the
 # fit's sums of squares far from overflow.
 MAX_COORDINATE_MM = 1e6
@@ -522,6 +525,7 @@ class _Fitted:
         if drop_outliers:
             used[list(search.outliers)] = False
         matrix, reflected = fit_hand(plane[used], robot[used], model, mirrored)
+        _check_invertible(matrix)
         residual_xy = apply(matrix, plane) - robot
         residuals = np.hypot(*residual_xy.T)
         loo = residuals.copy()  # a dropped point's fit is already the fit without it
@@ -575,6 +579,18 @@ class _Fitted:
             f"the touches show the other hand: a map that {_mirrors(not mirrored)} fits them "
             f"with an RMS of {other_rms:.3g} mm, the hand given ({_mirrors(mirrored)}) with "
             f"{given_rms:.3g} mm; check the hand given",
+        )
+
+
+def _check_invertible(matrix: F64) -> None:
+    """RegistrationError for a map that flattens the board (robot points on a line under
+    board points that are not, or pairs that do not correspond): it has no inverse."""
+    s = np.linalg.svd(matrix[:2, :2], compute_uv=False)
+    if not s[1] > MIN_SINGULAR_RATIO * s[0]:
+        raise RegistrationError(
+            f"the fitted map flattens the board (its linear part's singular values "
+            f"{s[0]:.3g} and {s[1]:.3g}): the robot points do not follow the board points "
+            "(robot points on a line, or pairs that do not correspond); check the pairing"
         )
 
 
