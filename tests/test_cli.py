@@ -134,7 +134,7 @@ def test_board_refuses_a_page_it_does_not_fit(tmp_path: Path) -> None:
 
 def test_board_bad_output_paths(tmp_path: Path) -> None:
     result = _run("board", "-o", tmp_path / "board.txt")
-    assert result.returncode == 1 and ".svg or .pdf" in result.stderr
+    assert result.returncode == 2 and ".svg or .pdf" in result.stderr  # a malformed -o
     blocker = tmp_path / "file"
     blocker.write_text("")
     result = _run("board", "-o", blocker / "board.svg")
@@ -171,9 +171,9 @@ def test_calibrate_json_and_report(images: dict[str, Path], tmp_path: Path) -> N
     assert cal.summary().mean_px == pytest.approx(summary["mean_error_px"])
     # The report: the per-point table, the summary, and the two figures.
     rows = (report / "points.csv").read_text().splitlines()
-    assert len(rows) == 141 and rows[0].startswith("point,row,col,world_x_mm")
+    assert len(rows) == 141 and rows[0].startswith("dot,row,col,world_x_mm")
     first = rows[1].split(",")
-    assert first[:5] == ["1", "0", "0", "0.000000", "0.000000"]
+    assert first[:5] == ["0", "0", "0", "0.000000", "0.000000"]  # dot 0, the origin
     assert json.loads((report / "summary.json").read_text())["n_points"] == 140
     for name in ("detection.png", "deviations.png"):
         picture = cv2.imread(str(report / name))
@@ -229,11 +229,11 @@ def test_calibrate_failures_say_what_is_wrong(images: dict[str, Path], tmp_path:
             "no 10 x 8 circle grid",
         ),
         (("calibrate", images["objects"], "-o", out), "no 14 x 10 circle grid"),
+        # The paper's 10 mm dots, 20 mm apart, described as 15 mm ones (issue 21).
         (
-            ("calibrate", images["board"], "--pitch", "5", "--diameter", "10", "-o", out),
-            "diameter must be smaller",
+            ("calibrate", images["board"], "--diameter", "15", "-o", out),
+            "the board says 15 mm (0.75): the diameter or the pitch is wrong",
         ),
-        (("calibrate", "-o", out), "give an IMAGE"),
     ]
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"not a png at all")
@@ -243,6 +243,18 @@ def test_calibrate_failures_say_what_is_wrong(images: dict[str, Path], tmp_path:
         assert result.returncode == 1, (args, result.stderr)
         assert message in result.stderr, (args, result.stderr)
         assert "Traceback" not in result.stderr
+    # A command line that cannot be right, whatever the image: malformed, status 2.
+    malformed = [
+        (
+            ("calibrate", images["board"], "--pitch", "5", "--diameter", "10", "-o", out),
+            "diameter must be smaller",
+        ),
+        (("calibrate", "-o", out), "give an IMAGE"),
+    ]
+    for args, message in malformed:
+        result = _run(*args)
+        assert result.returncode == 2, (args, result.stderr)
+        assert message in result.stderr, (args, result.stderr)
     assert not out.exists()
     blocker = tmp_path / "file"
     blocker.write_text("")
@@ -322,7 +334,7 @@ def test_calibrate_lens_choice_and_printer_scale(images: dict[str, Path], tmp_pa
     d_a, d_s = (np.linalg.norm(np.diff(c.image_to_world(px), axis=0)) for c in (a, s))
     assert d_s == pytest.approx(1.01 * d_a, rel=1e-6)
     bad = _run("calibrate", images["board"], "-o", scaled, "--measured-pitch", "30")
-    assert bad.returncode == 1 and "printer's scale" in bad.stderr
+    assert bad.returncode == 1 and "printer's scale" in bad.stderr  # the data refute it
     bad = _run("calibrate", images["board"], "-o", scaled, "--measured-pitch", "x,y")
     assert bad.returncode == 2 and "X,Y" in bad.stderr
 
@@ -366,7 +378,7 @@ def test_intrinsics_then_objects_of_known_height(tmp_path: Path) -> None:
     with pytest.raises(planarcal.IntrinsicsError, match="intrinsics"):
         auto.image_to_world(px, height=20.0)
     bad = _run("intrinsics", views[0], *BOARD_ARGS, "-o", tmp_path / "x.yaml")
-    assert bad.returncode == 1 and "at least 3" in bad.stderr
+    assert bad.returncode == 2 and "at least 3" in bad.stderr
 
 
 def test_board_arguments_default_per_command() -> None:

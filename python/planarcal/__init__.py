@@ -21,74 +21,179 @@ Underneath, a Rust core (homography solvers, refinement, batch transforms) with 
 Every exception planarcal raises derives from ``planarcal.Error`` (see ``planarcal.errors``).
 """
 
+import importlib as _importlib
+import importlib.util as _importlib_util
 import os as _os
+from typing import TYPE_CHECKING
 
 from planarcal import _core
 from planarcal._core import __version__
-from planarcal.calib.board import CircleGridBoard
-from planarcal.calib.calibration import Calibration, CalibrationSummary, LensCandidate, LensModel
-from planarcal.calib.detect import BoardDetection, detect_board
-from planarcal.camera import CameraIntrinsics, calibrate_camera
-from planarcal.errors import (
-    ArgumentError,
-    ArgumentTypeError,
-    BoardError,
-    BoardNotFoundError,
-    BoardTurnedError,
-    CalibrationFileError,
-    CameraError,
-    DegenerateError,
-    Error,
-    FrameSizeError,
-    HomographyError,
-    ImageError,
-    IntrinsicsError,
-    LensModelError,
-    MissingDependencyError,
-    OpenCVCompatibleArgumentError,
-    OpenCVCompatibleError,
-    OpenCVCompatiblePointAtInfinityError,
-    OutputError,
-    PointAtInfinityError,
-    RegistrationError,
-    StateError,
-)
-from planarcal.homography import (
-    SOLVERS,
-    ReprojectionStats,
-    Solver,
-    error_stats,
-    estimate_homography,
-    reprojection_errors,
-    reprojection_stats,
-    transform_points,
-)
-from planarcal.homography.opencv import (
-    LMEDS,
-    RANSAC,
-    RHO,
-    USAC_ACCURATE,
-    USAC_DEFAULT,
-    USAC_FAST,
-    USAC_FM_8PTS,
-    USAC_MAGSAC,
-    USAC_PARALLEL,
-    USAC_PROSAC,
-    findHomography,
-    perspectiveTransform,
-)
-from planarcal.homography.robust import (
-    RobustMethod,
-    RobustResult,
-    StopReason,
-    estimate_homography_robust,
-    estimate_homography_robust_batch,
-)
-from planarcal.images import load_image
-from planarcal.live.capture import Camera
-from planarcal.live.objects import DetectedObject, detect_objects, locate_objects
-from planarcal.live.tracker import FrameResult, TrackedObject, Tracker
-from planarcal.robot import RobotFrame
+
+# The names below are imported when first used (PEP 562): `import planarcal`, and so the
+# command line's `--help`, stays free of numpy, OpenCV and SciPy until a name needs them.
+# The static imports are for type checkers; _EXPORTS says where each name lives at run
+# time (tests/test_lazy_exports.py keeps the two and __all__ the same).
+if TYPE_CHECKING:
+    from planarcal.calib.board import CircleGridBoard
+    from planarcal.calib.calibration import (
+        Calibration,
+        CalibrationSummary,
+        LensCandidate,
+        LensModel,
+    )
+    from planarcal.calib.detect import BoardDetection, detect_board
+    from planarcal.camera import CameraIntrinsics, calibrate_camera
+    from planarcal.errors import (
+        ArgumentError,
+        ArgumentTypeError,
+        BoardError,
+        BoardNotFoundError,
+        BoardTurnedError,
+        CalibrationFileError,
+        CameraError,
+        DegenerateError,
+        Error,
+        FrameSizeError,
+        HomographyError,
+        ImageError,
+        IntrinsicsError,
+        LensModelError,
+        MissingDependencyError,
+        OpenCVCompatibleArgumentError,
+        OpenCVCompatibleError,
+        OpenCVCompatiblePointAtInfinityError,
+        OutputError,
+        PointAtInfinityError,
+        RegistrationError,
+        StateError,
+    )
+    from planarcal.homography import (
+        SOLVERS,
+        ReprojectionStats,
+        Solver,
+        error_stats,
+        estimate_homography,
+        reprojection_errors,
+        reprojection_stats,
+        transform_points,
+    )
+    from planarcal.homography.opencv import (
+        LMEDS,
+        RANSAC,
+        RHO,
+        USAC_ACCURATE,
+        USAC_DEFAULT,
+        USAC_FAST,
+        USAC_FM_8PTS,
+        USAC_MAGSAC,
+        USAC_PARALLEL,
+        USAC_PROSAC,
+        findHomography,
+        perspectiveTransform,
+    )
+    from planarcal.homography.robust import (
+        RobustMethod,
+        RobustResult,
+        StopReason,
+        estimate_homography_robust,
+        estimate_homography_robust_batch,
+    )
+    from planarcal.images import load_image
+    from planarcal.live.capture import Camera
+    from planarcal.live.objects import DetectedObject, detect_objects, locate_objects
+    from planarcal.live.tracker import FrameResult, TrackedObject, Tracker
+    from planarcal.robot import RobotFrame
+
+_EXPORTS: dict[str, tuple[str, ...]] = {
+    "planarcal.calib.board": ("CircleGridBoard",),
+    "planarcal.calib.calibration": (
+        "Calibration",
+        "CalibrationSummary",
+        "LensCandidate",
+        "LensModel",
+    ),
+    "planarcal.calib.detect": ("BoardDetection", "detect_board"),
+    "planarcal.camera": ("CameraIntrinsics", "calibrate_camera"),
+    "planarcal.errors": (
+        "ArgumentError",
+        "ArgumentTypeError",
+        "BoardError",
+        "BoardNotFoundError",
+        "BoardTurnedError",
+        "CalibrationFileError",
+        "CameraError",
+        "DegenerateError",
+        "Error",
+        "FrameSizeError",
+        "HomographyError",
+        "ImageError",
+        "IntrinsicsError",
+        "LensModelError",
+        "MissingDependencyError",
+        "OpenCVCompatibleArgumentError",
+        "OpenCVCompatibleError",
+        "OpenCVCompatiblePointAtInfinityError",
+        "OutputError",
+        "PointAtInfinityError",
+        "RegistrationError",
+        "StateError",
+    ),
+    "planarcal.homography": (
+        "SOLVERS",
+        "ReprojectionStats",
+        "Solver",
+        "error_stats",
+        "estimate_homography",
+        "reprojection_errors",
+        "reprojection_stats",
+        "transform_points",
+    ),
+    "planarcal.homography.opencv": (
+        "LMEDS",
+        "RANSAC",
+        "RHO",
+        "USAC_ACCURATE",
+        "USAC_DEFAULT",
+        "USAC_FAST",
+        "USAC_FM_8PTS",
+        "USAC_MAGSAC",
+        "USAC_PARALLEL",
+        "USAC_PROSAC",
+        "findHomography",
+        "perspectiveTransform",
+    ),
+    "planarcal.homography.robust": (
+        "RobustMethod",
+        "RobustResult",
+        "StopReason",
+        "estimate_homography_robust",
+        "estimate_homography_robust_batch",
+    ),
+    "planarcal.images": ("load_image",),
+    "planarcal.live.capture": ("Camera",),
+    "planarcal.live.objects": ("DetectedObject", "detect_objects", "locate_objects"),
+    "planarcal.live.tracker": ("FrameResult", "TrackedObject", "Tracker"),
+    "planarcal.robot": ("RobotFrame",),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name: str) -> object:
+    """A public name, imported from its module on first use (then kept in the package);
+    otherwise a subpackage or module of planarcal not yet imported (``planarcal.synth``)."""
+    module = _MODULE_OF.get(name)
+    if module is not None:
+        value = getattr(_importlib.import_module(module), name)
+        globals()[name] = value
+        return value
+    if not name.startswith("_") and _importlib_util.find_spec(f"{__name__}.{name}") is not None:
+        return _importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+
 
 # A child forked after the thread pool started must not use it (its threads did not survive
 # the fork): the core then runs every batch on the calling thread.

@@ -811,7 +811,7 @@ def test_board_command_marker_as_large_as_the_pitch(
     # Larger than the distance to its neighbours: refused in one line, nothing written.
     refused = tmp_path / "refused.pdf"
     code = cli.main(["board", *options, "--marker-diameter", "20.5", "-o", str(refused)])
-    assert code == 1 and not refused.exists()
+    assert code == 2 and not refused.exists()  # a board that cannot be: a malformed command
     assert "at most the distance to its neighbours" in capsys.readouterr().err
 
 

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-import planarcal.cli
+import planarcal.commands.calibrate
 from conftest import decode_png
 from planarcal import report, synth
 from planarcal.calib.board import CircleGridBoard
@@ -164,7 +164,7 @@ def test_calibrate_draws_the_searchs_record(
     def refuse(*args: Any, **kwargs: Any) -> Any:
         raise BoardNotFoundError(MESSAGE, diagnostics)
 
-    monkeypatch.setattr(planarcal.cli, "detect_board", refuse)
+    monkeypatch.setattr(planarcal.commands.calibrate, "detect_board", refuse)
     report_dir = tmp_path / "report"
     assert _calibrate(image_file, tmp_path, "--report", str(report_dir)) == 1
     _, error = _failure_lines(capsys.readouterr().err)

@@ -111,7 +111,7 @@ class _FolderBackend(Backend):
         if image is None or image.size == 0:
             raise CameraError(
                 f"cannot decode {path!r} ({position}): it is corrupt, truncated or not an "
-                "image. Replace or remove it; the next read() goes on with the next image"
+                "image. Replace or remove it; reading goes on with the next image"
             )
         return image
 

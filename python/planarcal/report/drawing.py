@@ -196,13 +196,16 @@ def _text_width(text: str, s: float) -> int:
 AXIS_BGR = (255, 0, 200)
 
 
-def draw_objects(image: Any, objects: Sequence[Any]) -> U8:
+def draw_objects(image: Any, objects: Sequence[Any], title: str | None = None) -> U8:
     """The image with each object's outline, centroid, ID and (when located) its position in
     mm, and, where it has one, its axis: a line through the centroid along the image
     direction of its principal axis (``axis_px``), a little longer than the part, and its
-    angle (``angle_deg``, in the frame of its position) in the label."""
+    angle (``angle_deg``, in the frame of its position) in the label. ``title``, written in
+    the top-left corner, says what the numbers are (which frame the mm are in)."""
     canvas = _canvas(image)
     s = _scale(canvas)
+    if title:
+        _label(canvas, title, (int(8 * s), int(22 * s)), s)
     for o in objects:
         contour = np.rint(o.contour_px).astype(np.int32).reshape(-1, 1, 2)
         cv2.drawContours(canvas, [contour], -1, (0, 200, 255), max(1, int(s)), cv2.LINE_AA)

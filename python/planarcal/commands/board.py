@@ -1,0 +1,140 @@
+"""`planarcal board`: a printable board (SVG or PDF) at exact scale, on the smallest ISO A
+page it fits (``--page auto``) or on the page asked for, with the commands for boards that
+fit A4 and letter when it needs a larger page."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import shlex
+from pathlib import Path
+
+from planarcal.calib.board import CircleGridBoard
+from planarcal.commands import board_arguments, board_from, command_line, non_negative
+from planarcal.errors import ArgumentError, BoardError
+from planarcal.report.printable import (
+    MARGIN_MM,
+    PrintLayout,
+    page_refusal,
+    page_size,
+    pitch_meaning,
+    smaller_board,
+    write_board,
+)
+
+# The pages `--page auto` tries, smallest first.
+AUTO_PAGES = ("A4", "A3", "A2", "A1", "A0")
+
+DESCRIPTION = (
+    "Write a circle-grid board to print at 100%, with a 100 mm check bar and its parameters."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.description = DESCRIPTION
+    board_arguments(p, for_printing=True)
+    p.add_argument("-o", "--output", required=True, type=Path, help="board.svg or board.pdf")
+    p.add_argument(
+        "--page",
+        default="auto",
+        help="A4, A3, letter, ..., WxH in mm, or auto: the smallest ISO A page "
+        "the board fits (default)",
+    )
+    p.add_argument("--orientation", default="auto", choices=("auto", "portrait", "landscape"))
+    p.add_argument(
+        "--margin",
+        type=non_negative,
+        default=MARGIN_MM,
+        help=f"page margin in mm ({MARGIN_MM:g})",
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    board = board_from(args)
+    if board.diameter is None:
+        # A printed dot needs a size: half the neighbour distance, dots as wide as the gaps.
+        board = dataclasses.replace(board, diameter=board.neighbour_distance / 2)
+    auto = args.page.lower() == "auto"
+    layout: PrintLayout | None = None
+    refused: str | None = None
+    # An unknown page, a bad margin or an output that is neither .svg nor .pdf is the command
+    # line's fault (ArgumentError); a board too large for the page is not (BoardError).
+    with command_line(ArgumentError):
+        for page in AUTO_PAGES if auto else (args.page,):
+            refused = page_refusal(
+                board,
+                page,
+                orientation=args.orientation,
+                margin_mm=args.margin,
+                offer=functools.partial(_offer, args, page),
+            )
+            if refused is None:
+                layout = write_board(
+                    board,
+                    args.output,
+                    page=page,
+                    orientation=args.orientation,
+                    margin_mm=args.margin,
+                )
+                break
+    if layout is None:
+        # The board fits no page tried: the message names a page that would, and the
+        # command for a board that fits the last one.
+        raise BoardError(refused)
+    print(f"wrote {args.output}: {board.describe()}, on {layout.page} {layout.orientation}.")
+    print(f"{board.layout.capitalize()} grid: {pitch_meaning(board)}.")
+    if args.diameter is None:
+        print(
+            f"Dot diameter {board.diameter:g} mm: half the distance between neighbouring dots "
+            "(no --diameter given)."
+        )
+    print("Print it at 100% (actual size, no fit-to-page) and check the bar measures 100 mm.")
+    if auto and layout.page != AUTO_PAGES[0]:
+        # Most printers take A4 or letter only: say which board each holds.
+        print(f"It needs {layout.page} paper.")
+        for small in ("A4", "letter"):
+            other = smaller_board(board, page_size(small), args.orientation, args.margin)
+            if other is not None:
+                print(f"On {small}: {_offer(args, small, other)}.")
+    return 0
+
+
+def board_command(args: argparse.Namespace, page: str, board: CircleGridBoard) -> str:
+    """The `planarcal board` command line that prints `board` on `page`, with the options of
+    `args` it keeps (output, orientation, margin, layout, marker)."""
+    words = ["planarcal board", "-o", shlex.quote(str(args.output)), "--page", shlex.quote(page)]
+    if args.orientation != "auto":
+        words += ["--orientation", args.orientation]
+    if args.margin != MARGIN_MM:
+        words += ["--margin", f"{args.margin:g}"]
+    words += ["--cols", str(board.cols), "--rows", str(board.rows), "--pitch", f"{board.pitch:g}"]
+    # Sizes the user chose are kept, scaled with the pitch; unchosen ones follow it anyway.
+    if args.diameter is not None:
+        words += ["--diameter", _exact_mm(board.dots_mm())]
+    if board.layout != "symmetric":
+        words += ["--layout", board.layout]
+    if not board.origin_marker:
+        words.append("--no-origin-marker")
+    elif board.marker_diameter is not None:
+        words += ["--marker-diameter", _exact_mm(board.marker_diameter)]
+    return " ".join(words)
+
+
+def _exact_mm(value: float) -> str:
+    """A length as short as it reads back exactly: a marker held at the dots' spacing must
+    not be rounded past it."""
+    short = f"{value:.10g}"
+    return short if float(short) == value else repr(float(value))
+
+
+def _offer(args: argparse.Namespace, page: str, board: CircleGridBoard) -> str:
+    """A smaller board that fits `page`, offered as its command line."""
+    return (
+        f"`{board_command(args, page, board)}` ({_dots_and_pitch(board)}; calibrate with the "
+        "same --cols, --rows and --pitch)"
+    )
+
+
+def _dots_and_pitch(board: CircleGridBoard) -> str:
+    return f"{board.cols} x {board.rows} dots, {board.pitch:g} mm apart"

@@ -1,0 +1,234 @@
+"""`planarcal calibrate`: find the board in an image (or in the average of a camera's, a
+video's or a folder's frames of one still view), fit the plane's homography, save it, and
+report its accuracy."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal.calib.calibration import Calibration
+from planarcal.calib.detect import detect_board
+from planarcal.camera import CameraIntrinsics
+from planarcal.commands import board_arguments, board_from, count, not_a_folder, positive
+from planarcal.errors import BoardNotFoundError, ImageError
+from planarcal.homography import SOLVERS
+from planarcal.images import load_image
+from planarcal.live.capture import Camera
+from planarcal.live.capture_sources import open_path
+from planarcal.report import summary_json, summary_text, write_detection_failure, write_report
+from planarcal.report.figure import require_matplotlib
+from planarcal.report.printable import CHECK_BAR_MM
+
+DESCRIPTION = (
+    "Find the board in IMAGE, fit the plane's homography, save it, and report its accuracy."
+)
+
+MOVED_LEVEL = 64
+"""A pixel that differs from the first frame's by more than this (of 255) has changed: far
+beyond a camera's noise and compression, the edge of a dot that moved."""
+MOVED_SHARE = 0.02
+"""Frames with more than this share of changed pixels show another view: averaged, the board
+would be a ghost of both."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.description = DESCRIPTION
+    p.add_argument("image", nargs="?", type=Path, help="image of the board")
+    p.add_argument(
+        "--camera",
+        default=None,
+        help="instead of IMAGE: a camera index, video file, stream URL or image "
+        "folder, whose frames (of one still view) are averaged",
+    )
+    p.add_argument("--frames", type=count, default=10, help="frames to average with --camera (10)")
+    board_arguments(p)
+    p.add_argument("-o", "--output", required=True, type=Path, help="calibration file (JSON)")
+    p.add_argument(
+        "--solver",
+        default="normalized_dlt",
+        choices=SOLVERS,
+        help="linear solver (a33 reproduces the paper)",
+    )
+    p.add_argument(
+        "--no-refine",
+        action="store_true",
+        help="skip the Levenberg-Marquardt refinement (the paper's method has none)",
+    )
+    p.add_argument(
+        "--polarity",
+        default="auto",
+        choices=("auto", "dark", "light"),
+        help="dark dots on light paper, light on dark, or try both",
+    )
+    p.add_argument(
+        "--turned",
+        action="store_true",
+        help="accept a board without an origin marker that lies turned by 90 degrees in the "
+        "image (refused by default: usually --cols and --rows are swapped)",
+    )
+    p.add_argument(
+        "--lens",
+        default="auto",
+        choices=("auto", "none", "k1", "k1k2", "k1k2c"),
+        help="lens-distortion model fitted with the homography: auto (default) keeps the one "
+        "with the lowest leave-one-out error; none is the paper's homography alone",
+    )
+    p.add_argument(
+        "--intrinsics",
+        type=Path,
+        default=None,
+        help="camera intrinsics (OpenCV YAML, e.g. from 'planarcal intrinsics'): undistort "
+        "with them and allow heights above the plane",
+    )
+    scale = p.add_mutually_exclusive_group()
+    scale.add_argument(
+        "--measured-pitch",
+        type=_pitches,
+        default=None,
+        metavar="X[,Y]",
+        help="the board's pitch in mm as measured with a rule (X along a row, Y down a "
+        "column): corrects the printer's scale",
+    )
+    scale.add_argument(
+        "--check-bar",
+        type=positive,
+        default=None,
+        metavar="MM",
+        help="the printed 100 mm check bar's length as measured: corrects the printer's scale",
+    )
+    p.add_argument(
+        "--report", type=Path, default=None, help="directory for the tables (CSV) and figures (PNG)"
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+
+
+def _pitches(text: str) -> tuple[float, ...]:
+    words = text.split(",")
+    if len(words) not in (1, 2):
+        raise argparse.ArgumentTypeError(f"expected X or X,Y in mm, got {text!r}")
+    try:
+        return tuple(positive(w) for w in words)
+    except argparse.ArgumentTypeError as e:
+        raise argparse.ArgumentTypeError(f"expected X or X,Y in mm: {e}") from None
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.report is not None:
+        require_matplotlib()  # before the work: the figures cannot be drawn without it
+    board = board_from(args)
+    intrinsics = None
+    if args.intrinsics is not None:
+        intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
+    image = _read_image(args)
+    try:
+        detection = detect_board(image, board, polarity=args.polarity, turned=args.turned)
+    except BoardNotFoundError as e:
+        if args.report is not None:
+            # What the search saw is what it takes to fix the picture: draw it, then fail.
+            try:
+                drawn = write_detection_failure(args.report, image, e.diagnostics, str(e))
+            except OSError as why:
+                print(f"planarcal calibrate: could not draw what was seen: {why}", file=sys.stderr)
+            else:
+                print(f"planarcal calibrate: drew what the search saw in {drawn}", file=sys.stderr)
+        raise
+    lens = args.lens
+    if intrinsics is not None and lens == "auto":
+        lens = "none"
+    cal = Calibration.from_detection(
+        detection,
+        solver=args.solver,
+        refine=not args.no_refine,
+        lens=lens,
+        intrinsics=intrinsics,
+    )
+    if args.measured_pitch is not None:
+        cal = cal.rescaled(*args.measured_pitch)
+    elif args.check_bar is not None:
+        pitch = board.pitch * args.check_bar / CHECK_BAR_MM
+        cal = cal.rescaled(pitch)
+    saved = cal.save(args.output)
+    written = []
+    if args.report is not None:
+        written = write_report(cal, args.report, image=image, detection=detection)
+    if args.json:
+        out = summary_json(cal, detection)
+        out["calibration_file"] = str(saved)
+        if written:
+            out["report_files"] = [str(p) for p in written]
+        print(json.dumps(out, allow_nan=False))
+    else:
+        print(summary_text(cal, detection))
+        print(f"Saved the calibration to {saved}")
+        for p in written:
+            print(f"Wrote {p}")
+    return 0
+
+
+def _read_image(args: argparse.Namespace) -> Any:
+    """The calibration image: a file, or the average of frames from a camera source."""
+    if args.camera is None:
+        if args.image is None:
+            raise argparse.ArgumentError(None, "give an IMAGE file or --camera SOURCE")
+        instead = f"to average the images in it, give --camera {args.image}"
+        return load_image(not_a_folder(args.image, instead))
+    source: int | str = int(args.camera) if args.camera.isdigit() else args.camera
+    with Camera(source) as camera:
+        return still_average(camera, args.frames)
+
+
+def still_average(camera: Camera, n: int) -> NDArray[np.float32]:
+    """The mean of the camera's next ``n`` frames, which must show one still view: frames
+    that differ from the first (the board moved, a folder of several views) are refused
+    (ImageError naming them), not averaged into a ghost of the board."""
+    first: NDArray[np.uint8] | None = None
+    total: NDArray[np.float64] | None = None
+    moved: list[tuple[int, float]] = []
+    for k, frame in enumerate(camera.frames(n), start=1):
+        if first is None or total is None:
+            first, total = frame, frame.astype(np.float64)
+            continue
+        changed = np.abs(frame.astype(np.int16) - first) > MOVED_LEVEL
+        share = float(np.count_nonzero(changed)) / changed.size
+        if share > MOVED_SHARE:
+            moved.append((k, share))
+        total += frame
+    if moved:
+        raise ImageError(_views_differ(camera, moved))
+    assert total is not None
+    return (total / n).astype(np.float32)
+
+
+def _views_differ(camera: Camera, moved: list[tuple[int, float]]) -> str:
+    names = _frame_names(camera)
+    which = ", ".join(
+        f"frame {k}{names(k)} ({100 * share:.0f} % of its pixels changed)" for k, share in moved
+    )
+    return (
+        f"the frames of {camera.label} do not show one still view: {which} differ from frame "
+        f"1{names(1)}; their average would blur the board into a ghost of both. Give "
+        "--camera a still view (a folder of pictures of one pose), or calibrate from one IMAGE"
+    )
+
+
+def _frame_names(camera: Camera) -> Callable[[int], str]:
+    """Frame k's file name, for an image folder (in the order the Camera reads it)."""
+    files: list[str] = []
+    source = camera.source
+    if isinstance(source, str | Path) and Path(source).is_dir():
+        backend = open_path(str(source), 1000, None, None, False)
+        files = list(getattr(backend, "files", []))
+        backend.release()
+
+    def name(k: int) -> str:
+        return f" ({Path(files[k - 1]).name})" if k <= len(files) else ""
+
+    return name
