@@ -94,10 +94,12 @@ ALWAYS = ("solver", "refine", "homography_world_mm_to_image_px", "points")
 """The fields every version has."""
 
 EDIT_HINT = (
-    "a calibration file is changed by planarcal, not by hand: calibrate or register again, or, "
-    "to keep an edit made on purpose, load the file once with Calibration.load(path, "
-    "trust_edits=True) and save it (README: Calibration files)"
+    "a calibration is changed by planarcal (calibrate or register again); to keep an edit "
+    'made on purpose, load it once trusting the edit and save it: python -c "import planarcal '
+    'as pc; pc.Calibration.load({path}, trust_edits=True).save({path})" (README: Calibration '
+    "files)"
 )
+"""What a refusal by the digest adds: how to change a file (``{path}``: the file's)."""
 
 MAX_FILE_BYTES = 16 * 2**20
 """The largest calibration file read: one of the paper's board is 30 kB, one of a 100 x 100
@@ -332,7 +334,7 @@ def check_digest(data: dict[str, Any], source: str) -> None:
     if not (isinstance(digest, dict) and isinstance(stored, dict) and len(digest) == 1):
         raise CalibrationFileError(
             f'{source}: its digest is not a digest ({{"sha256": {{field: hex}}}}) but '
-            f"{_show(digest)}: edited by hand? {EDIT_HINT}"
+            f"{_show(digest)}: edited by hand? {_edit_hint(source)}"
         )
     try:
         actual = field_digests(data)
@@ -344,8 +346,15 @@ def check_digest(data: dict[str, Any], source: str) -> None:
         names = ", ".join(edited)
         raise CalibrationFileError(
             f"{source}: {names} {'is' if len(edited) == 1 else 'are'} not what the file was "
-            f"saved with (its digest does not match): edited by hand? {EDIT_HINT}"
+            f"saved with (its digest does not match): edited by hand? {_edit_hint(source)}"
         )
+
+
+def _edit_hint(source: str) -> str:
+    # `source` is the file's name as repr writes it ('calib.json'), or a description of a
+    # dict (from_dict's "calibration data"), for which the command names a file.
+    path = source if source[:1] in "'\"" else "'calib.json'"
+    return EDIT_HINT.format(path=path)
 
 
 def fit_as_loaded(
