@@ -2,9 +2,13 @@
 hostile inputs to every public entry point, from tests/fuzz_inputs.py's seeded generators,
 judged there. Targets: no panic crossing into Python, no exception that is not planarcal's,
 no result the documentation rules out, no H for a degenerate set, no corrupt file accepted,
-and no crash (a sample run in a child process).
+and no crash (a sample run in a child process). Issue 21's entry points besides: the
+registration to a robot (no confident wrong answer), every edit of a saved calibration (none
+loaded with another meaning), trigger-server sessions and `planarcal run` over damaged
+sources (no silent loss, no hang, no traceback).
 
-The campaign's findings (F1-F7, all fixed) are kept below as their minimal cases."""
+The campaign's findings (F1-F7 and F9-F13, all fixed) are kept below as their minimal
+cases."""
 
 from __future__ import annotations
 
