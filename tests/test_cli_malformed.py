@@ -72,6 +72,8 @@ MALFORMED = [
         "diameter must be smaller",
     ),
     (["calibrate", "-o", "{out}"], "give an IMAGE"),
+    (["calibrate", "{board}", "--camera", "0", "-o", "{out}"], "not both"),
+    (["calibrate", "{board}", "--frames", "5", "-o", "{out}"], "--frames goes with --camera"),
     (["intrinsics", "{board}", "-o", "{out}.yaml"], "at least 3 images"),
     (["intrinsics", "{board}", "--marker-diameter", "-2", "-o", "{out}"], "--marker-diameter"),
     (

@@ -31,6 +31,8 @@ DESCRIPTION = (
     "Find the board in IMAGE, fit the plane's homography, save it, and report its accuracy."
 )
 
+FRAMES = 10
+"""The frames ``--camera`` averages unless ``--frames`` says."""
 MOVED_LEVEL = 64
 """A pixel that differs from the first frame's by more than this (of 255) has changed: far
 beyond a camera's noise and compression, the edge of a dot that moved."""
@@ -48,7 +50,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="instead of IMAGE: a camera index, video file, stream URL or image "
         "folder, whose frames (of one still view) are averaged",
     )
-    p.add_argument("--frames", type=count, default=10, help="frames to average with --camera (10)")
+    p.add_argument(
+        "--frames", type=count, default=None, help=f"frames to average with --camera ({FRAMES})"
+    )
     board_arguments(p)
     p.add_argument("-o", "--output", required=True, type=Path, help="calibration file (JSON)")
     p.add_argument(
@@ -175,14 +179,18 @@ def main(args: argparse.Namespace) -> int:
 
 def _read_image(args: argparse.Namespace) -> Any:
     """The calibration image: a file, or the average of frames from a camera source."""
+    if args.image is not None and args.camera is not None:
+        raise argparse.ArgumentError(None, "give an IMAGE file or --camera SOURCE, not both")
     if args.camera is None:
         if args.image is None:
             raise argparse.ArgumentError(None, "give an IMAGE file or --camera SOURCE")
+        if args.frames is not None:
+            raise argparse.ArgumentError(None, "--frames goes with --camera (an IMAGE is one)")
         instead = f"to average the images in it, give --camera {args.image}"
         return load_image(not_a_folder(args.image, instead))
     source: int | str = int(args.camera) if args.camera.isdigit() else args.camera
     with Camera(source) as camera:
-        return still_average(camera, args.frames)
+        return still_average(camera, FRAMES if args.frames is None else args.frames)
 
 
 def still_average(camera: Camera, n: int) -> NDArray[np.float32]:
