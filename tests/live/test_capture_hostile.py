@@ -63,7 +63,7 @@ def test_run_skips_an_undecodable_first_image(
     assert result.returncode == 0, result.stderr
     assert located(result.stdout) == [1, 2, 3]
     figures = summary(result.stderr)
-    assert (figures["read"], figures["frames"], figures["corrupt"]) == (4, 3, 1)
+    assert (figures["read"], figures["frames"], figures["frames_undecodable"]) == (4, 3, 1)
     assert "cannot decode" in figures["first_fault"] and "frame000.png" in figures["first_fault"]
 
 
@@ -80,7 +80,7 @@ def test_run_counts_a_frame_of_another_size_and_goes_on(
     assert result.returncode == 0, result.stderr
     assert located(result.stdout) == [0, 1, 3]
     figures = summary(result.stderr)
-    assert (figures["read"], figures["frames"], figures["corrupt"]) == (4, 3, 1)
+    assert (figures["read"], figures["frames"], figures["frames_wrong_size"]) == (4, 3, 1)
     fault = figures["first_fault"]
     assert "640x360 frame" in fault and "1280x720" in fault and "frame002.png" in fault
 

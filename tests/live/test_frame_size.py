@@ -200,7 +200,7 @@ def test_a_stream_that_comes_up_at_another_size_stops_the_tracker(
     t = Tracker(cal_640, "rtsp://camera.invalid/parts", max_frames=3)
     with pytest.raises(FrameSizeError, match=r"1280 x 720 px .* 640 x 480 px"):
         list(t)
-    assert (t.stats.frames, t.stats.failed, t.stats.corrupt) == (0, 0, 0)
+    assert (t.stats.frames, t.stats.failed, t.stats.frames_wrong_size) == (0, 0, 0)
 
 
 def test_run_refuses_frames_of_another_size_at_once(

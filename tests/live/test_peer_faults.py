@@ -108,8 +108,8 @@ def check_kept_its_rate(figures: dict[str, Any], calls: OutputCalls) -> None:
     """Every frame processed made one call to the output, and the loop was late for few of
     the frames the source delivered."""
     assert figures["frames"] == len(calls.durations)
-    assert figures["corrupt"] == 0 and figures["failed"] == 0
-    late = figures["dropped"]
+    assert figures["frames_undecodable"] == 0 and figures["failed"] == 0
+    late = figures["frames_dropped"]
     assert late <= LATE_SHARE * figures["read"], f"the loop was late for {late} frames"
     calls.check_none_waited()
 

@@ -110,7 +110,7 @@ def test_objects_are_tracked_in_millimetres_through_a_video(
     assert [r.index for r in results] == list(range(N_FRAMES))
     check_tracks(results, truth, 0.15)
     s = t.stats
-    assert (s.frames, s.objects, s.corrupt, s.failed, s.dropped) == (
+    assert (s.frames, s.objects, s.frames_undecodable, s.failed, s.frames_dropped) == (
         N_FRAMES,
         3 * N_FRAMES,
         0,
@@ -162,7 +162,7 @@ def test_a_corrupt_frame_in_a_folder_is_counted_and_skipped(
     with Tracker(calibration, tmp_path) as t:
         results = list(t)
     assert [r.index for r in results] == [0, 1, 2, 3, 5, 6, 7]
-    assert t.stats.corrupt == 1 and t.last_error is not None
+    assert t.stats.frames_undecodable == 1 and t.last_error is not None
     check_tracks(results, truth, 0.15)
 
 
@@ -180,7 +180,7 @@ def test_max_frames_counts_the_frames_read_failed_ones_too(
     # The first five frames of the source, not five good ones.
     assert [r.index for r in results] == [0, 1, 4]
     s = t.stats
-    assert (s.read, s.frames, s.corrupt, s.failed) == (5, 3, 2, 0)
+    assert (s.read, s.frames, s.frames_undecodable, s.failed) == (5, 3, 2, 0)
     assert t.first_error is not None and "frame003" not in str(t.first_error)
     assert t.last_error is not None and "frame003" in str(t.last_error)
     check_tracks(results, truth, 0.15)
@@ -235,8 +235,8 @@ def test_a_camera_that_drops_out_is_reopened_with_back_off(
     # (the reader decodes this file faster than the loop takes frames) count too.
     with Tracker(calibration, str(path), max_frames=20) as t:
         results = list(t)
-    assert t.stats.reconnects == 1 and FlakyCamera.opened == 4
-    assert t.stats.read == 20 and len(results) + t.stats.dropped == 20
+    assert t.stats.camera_reconnects == 1 and FlakyCamera.opened == 4
+    assert t.stats.read == 20 and len(results) + t.stats.frames_dropped == 20
     # The reopened camera starts its video from the beginning: indices go on counting.
     assert [r.index for r in results[:6]] == list(range(6))
     for r in results:
@@ -294,9 +294,10 @@ def test_a_stream_absent_at_start_is_waited_for(
         results = list(t)
     assert len(results) == 5 and LateCamera.opened == 4
     # Waiting at start is not a reconnection; each failed attempt is logged.
-    assert t.stats.reconnects == 0
-    assert "waiting for it" in caplog.text and caplog.text.count("retrying in") == 2
-    assert "open after" in caplog.text
+    assert t.stats.camera_reconnects == 0
+    assert "camera down: " in caplog.text and "waiting for it" in caplog.text
+    assert caplog.text.count("reopening in") == 2 and "(attempt 3)" in caplog.text
+    assert "open after" in caplog.text and t.stats.camera_down_s > 0
     for r in results:
         gaps = [np.hypot(*(truth - np.array(o.world_mm)).T.reshape(2, -1)).min() for o in r.objects]
         assert max(gaps) < 0.15
@@ -492,7 +493,7 @@ def test_run_stops_cleanly_on_sigterm_and_bad_arguments_are_named(
     lines = _lines(out.read_text())  # every line complete: the file was flushed
     assert len(lines) == figures["frames"] == figures["output"]["sent"]
     bad = _run("--source", path, "--calibration", calib, "--output", "tcp://nohost")
-    assert bad.returncode == 1 and "port" in bad.stderr
+    assert bad.returncode == 2 and "port" in bad.stderr  # 2: a malformed command line
     bad = _run("--source", tmp_path / "missing.mp4", "--calibration", calib)
     assert bad.returncode == 1 and "missing.mp4" in bad.stderr
 
@@ -514,7 +515,7 @@ def test_run_max_frames_counts_the_frames_read(
     assert [line["frame"] for line in lines] == [0, 2, 3]
     _check_lines(lines, truth, 0.15)
     figures = json.loads(result.stderr.rsplit("planarcal run: ", 1)[1])
-    assert (figures["read"], figures["frames"], figures["corrupt"]) == (4, 3, 1)
+    assert (figures["read"], figures["frames"], figures["frames_undecodable"]) == (4, 3, 1)
     assert "frame001.png" in figures["first_fault"]
 
 
@@ -532,7 +533,7 @@ def test_run_whose_every_frame_fails_exits_1_with_the_reason(video: Video, tmp_p
     assert result.stdout == ""
     error = result.stderr.strip().splitlines()[-1]
     assert error.startswith("planarcal run: error: every frame failed: 6 of the 6 frames read")
-    assert "0 undecodable or of the wrong size, 6 failed in detection" in error
+    assert "0 undecodable, 0 of the wrong size, 6 failed in detection" in error
     assert "first fault: " in error and "horizon" in error
     summary = next(
         line for line in result.stderr.splitlines() if line.startswith("planarcal run: {")

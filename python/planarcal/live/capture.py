@@ -5,16 +5,21 @@
 * a device index (``int``): a camera attached to this machine (V4L2 on Linux);
 * a stream URL (a ``str`` containing ``"://"``: ``rtsp://``, ``http://``, ...), read with
   OpenCV's FFmpeg backend;
-* a video file path (``str`` or ``os.PathLike``); a character device path such as
-  ``/dev/video0`` is opened as a camera;
+* a video file path (``str`` or ``os.PathLike``, or a ``file://`` URL); a character device
+  path such as ``/dev/video0`` is opened as a camera;
 * a folder of images, read in natural sort order (``img2.png`` before ``img10.png``); files
   without an image suffix (see ``IMAGE_SUFFIXES``) and hidden files are ignored.
 
 ``read()`` returns the next frame (H x W x 3 BGR ``uint8``, or H x W ``uint8`` with
 ``color=False``) and never returns None: the end of a file or folder, a camera or stream that
-stops delivering, and an image that cannot be decoded all raise ``CameraError`` naming the
-source and how many frames were read. Every frame has the resolution reported by
-``resolution``; a frame of another size raises ``CameraError``.
+stops delivering, and a folder's image that cannot be decoded all raise ``CameraError`` naming
+the source and how many frames were read. A camera or stream that stops delivering is closed
+at once (the device released): the caller opens a new ``Camera`` to retry, as
+``planarcal.Tracker`` does with back-off. A video file's frames that cannot be decoded (a
+damaged stretch) are skipped, and counted in ``frames_undecodable``: reading goes on after
+the damage, and the file ends only after ``MAX_UNDECODABLE_RUN`` failed reads in a row. Every
+frame has the resolution reported by ``resolution``; a frame of another size raises
+``CameraError`` (counted in ``frames_wrong_size``).
 
 No call blocks for longer than ``timeout_s``, even with a camera or stream that stops
 answering: every blocking call (opening, reading and decoding a frame, releasing) runs on a
@@ -58,6 +63,7 @@ from planarcal.live.capture_sources import (
     Backend,
     BackendSlot,
     SourceKind,
+    file_url_path,
     open_device,
     open_path,
     open_stream,
@@ -141,9 +147,12 @@ def _opener(
         label = f"camera device {index}"
         return "device", label, lambda: open_device(index, label, timeout_ms, width, height)
     if isinstance(source, str) and "://" in source:
-        url = source
-        label = f"stream {redact(url)!r}"
-        return "stream", label, lambda: open_stream(url, label, timeout_ms)
+        local = file_url_path(source)
+        if local is None:
+            url = source
+            label = f"stream {redact(url)!r}"
+            return "stream", label, lambda: open_stream(url, label, timeout_ms)
+        source = local  # a file:// URL is a file: read to its end, never reopened
     if isinstance(source, str | os.PathLike):
         path = os.fspath(source)
         if not isinstance(path, str) or not path:
@@ -200,9 +209,13 @@ class Camera:
         self._slot = BackendSlot()
         self._worker = Worker(name=f"planarcal-camera {self._label}")
         self._frames_read = 0
+        self._undecodable = 0
+        self._skipped = 0  # the backend's count of a video's undecodable frames
+        self._wrong_size = 0
         self._ended = False
         self._closed_because = ""
         self._fps: float | None = None
+        self._declared: int | None = None
         self._resolution = (0, 0)
         self._pending: Frame | None = None
         # A folder's undecodable images before its first good one, raised by read() in turn.
@@ -228,6 +241,7 @@ class Camera:
         self._label = backend.label
         self._kind = backend.kind
         self._fps = backend.fps
+        self._declared = backend.declared
         got = self._first_frame()
         if got is None:
             message = self._no_first_frame_message()
@@ -277,6 +291,24 @@ class Camera:
         return self._frames_read
 
     @property
+    def frames_undecodable(self) -> int:
+        """Frames lost because they could not be decoded: a video file's damaged frames,
+        skipped by ``read``, and a folder's images that ``read`` raised for."""
+        return self._undecodable + self._skipped
+
+    @property
+    def frames_wrong_size(self) -> int:
+        """Frames ``read`` raised for because their size differs from ``resolution``."""
+        return self._wrong_size
+
+    @property
+    def frames_declared(self) -> int | None:
+        """How many frames a video file's header declares (None if it does not say, and for
+        any other source): a file that ends before it has delivered them, undecodable ones
+        included, is truncated or damaged at its end."""
+        return self._declared
+
+    @property
     def closed(self) -> bool:
         """True after ``close()``, or after a timeout closed the Camera."""
         return self._closed
@@ -309,42 +341,62 @@ class Camera:
     def read(self) -> Frame:
         """The next frame: H x W x 3 BGR uint8, or H x W uint8 with ``color=False``.
 
+        Frames of a video file that cannot be decoded are skipped (``frames_undecodable``
+        counts them): the next frame that decodes is returned.
+
         Raises:
             CameraError: the camera is closed; the file or folder has ended; the camera or
-                stream stopped delivering or did not deliver within ``timeout_s`` (which also
-                closes the Camera); an image of the folder cannot be decoded (the next
-                ``read`` goes on with the image after it); a frame of another resolution.
+                stream stopped delivering or did not deliver within ``timeout_s`` (either
+                closes the Camera, releasing the device: open a new one to retry); an image
+                of the folder cannot be decoded (the next ``read`` goes on with the image
+                after it); a frame of another resolution.
             ImageError: the backend delivers frames that are not 8-bit images.
         """
         with self._lock:
             self._check_open()
             if self._pending_errors:
+                self._undecodable += 1
                 raise self._pending_errors.pop(0)
             if self._pending is not None:
                 frame, self._pending = self._pending, None
             else:
-                if self._ended:
-                    raise CameraError(self._end_message())
-                got = self._call(self._read_job, "deliver a frame")
-                if got is None:
-                    if self._kind in ("file", "folder"):
-                        self._ended = True
-                        raise CameraError(self._end_message())
-                    raise CameraError(
-                        f"{self._label} stopped delivering after {self._frames_read} frames "
-                        "(unplugged, connection lost, or the stream ended). Check the cable, "
-                        "power or network; open a new Camera to try again"
-                    )
-                frame, where = got
-                if (frame.shape[1], frame.shape[0]) != self._resolution:
-                    w, h = self._resolution
-                    raise CameraError(
-                        f"{self._label} delivered a {frame.shape[1]}x{frame.shape[0]} frame"
-                        f"{where} after {self._frames_read} frames of {w}x{h}: every frame "
-                        "must have the same resolution"
-                    )
+                frame = self._next_frame()
             self._frames_read += 1
             return frame
+
+    def _next_frame(self) -> Frame:
+        """read()'s frame from the backend (the lock held)."""
+        if self._ended:
+            raise CameraError(self._end_message())
+        try:
+            got = self._call(self._read_job, "deliver a frame")
+        except CameraError:
+            if self._kind == "folder" and not self._closed:
+                self._undecodable += 1  # an image that cannot be read or decoded
+            raise
+        if got is None:
+            if self._kind in ("file", "folder"):
+                self._ended = True
+                raise CameraError(self._end_message())
+            # Released at once: the device is free for the reopening (and for other
+            # programs), and a caller that reads on gets "closed", not a spin of failures.
+            because = f" (it stopped delivering after {self._frames_read} frames)"
+            self._close_locked(because)
+            raise CameraError(
+                f"{self._label} stopped delivering after {self._frames_read} frames "
+                "(unplugged, connection lost, or the stream ended). Check the cable, "
+                "power or network. The Camera is now closed: open a new one to try again"
+            )
+        frame, where = got
+        if (frame.shape[1], frame.shape[0]) != self._resolution:
+            w, h = self._resolution
+            self._wrong_size += 1
+            raise CameraError(
+                f"{self._label} delivered a {frame.shape[1]}x{frame.shape[0]} frame"
+                f"{where} after {self._frames_read} frames of {w}x{h}: every frame "
+                "must have the same resolution"
+            )
+        return frame
 
     def frames(self, n: int | None = None) -> Iterator[Frame]:
         """An iterator over the next ``n`` frames, or with ``n=None`` over every frame.
@@ -412,18 +464,23 @@ class Camera:
             self._closed = True
             return
         with lock:
-            if self._closed and self._worker.stopped:
-                return
-            self._closed = True
-            self._pending = None
-            self._pending_errors.clear()
-            if not self._worker.stopped:
-                try:
-                    self._worker.call(self._slot.release, self._timeout_s)
-                except WorkerTimeoutError:
-                    self._worker.stop(self._slot.release)
-                finally:
-                    self._worker.stop()
+            self._close_locked("")
+
+    def _close_locked(self, because: str) -> None:
+        """close() with the lock held; ``because`` is said by later calls' errors."""
+        if self._closed and self._worker.stopped:
+            return
+        self._closed = True
+        self._closed_because = self._closed_because or because
+        self._pending = None
+        self._pending_errors.clear()
+        if not self._worker.stopped:
+            try:
+                self._worker.call(self._slot.release, self._timeout_s)
+            except WorkerTimeoutError:
+                self._worker.stop(self._slot.release)
+            finally:
+                self._worker.stop()
 
     def __enter__(self) -> Camera:
         return self
@@ -454,6 +511,7 @@ class Camera:
         if backend is None:
             raise CameraError(f"{self._label} is closed")
         raw = backend.read()
+        self._skipped = backend.undecodable
         if raw is None:
             return None
         where = backend.where()

@@ -23,9 +23,11 @@ from planarcal.errors import CameraError
 
 __all__ = [
     "IMAGE_SUFFIXES",
+    "MAX_UNDECODABLE_RUN",
     "Backend",
     "BackendSlot",
     "SourceKind",
+    "file_url_path",
     "open_device",
     "open_path",
     "open_stream",
@@ -36,6 +38,12 @@ IMAGE_SUFFIXES = frozenset(
     {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pnm", ".jp2"}
 )
 """The suffixes (case-insensitive) of the files read from an image folder."""
+
+MAX_UNDECODABLE_RUN = 500
+"""How many frames in a row of a video file may fail to decode before the file counts as
+ended. FFmpeg's read fails at a damaged stretch and goes on after it (a damaged packet is
+consumed by each failed read), so stopping at the first failure would end the run at the
+damage; at the true end every read fails at once, so the retries cost well under a second."""
 
 SourceKind = Literal["device", "stream", "file", "folder"]
 """What a source is: a device and a stream are live (frames are lost if not read), a file and
@@ -48,6 +56,10 @@ class Backend:
     kind: SourceKind
     label: str
     fps: float | None = None
+    declared: int | None = None
+    """The number of frames a video file's header declares (None: unknown, or not a file)."""
+    undecodable: int = 0
+    """Frames of a video file that could not be decoded and were skipped so far."""
 
     def read(self) -> NDArray[Any] | None:
         raise NotImplementedError
@@ -69,12 +81,22 @@ class _VideoBackend(Backend):
         self.cap: Any = cap
         fps = float(cap.get(cv2.CAP_PROP_FPS))
         self.fps = fps if math.isfinite(fps) and fps > 0 else None
+        count = float(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if kind == "file" else math.nan
+        self.declared = int(count) if math.isfinite(count) and count > 0 else None
+        self.undecodable = 0
 
     def read(self) -> NDArray[Any] | None:
-        ok, frame = self.cap.read()
-        if not ok or frame is None or frame.size == 0:
-            return None
-        return cast(NDArray[Any], frame)
+        # A camera or stream that fails a read has stopped (the caller closes it); a file
+        # is read past a damaged stretch, whose frames are counted in `undecodable`.
+        failed = 0
+        while True:
+            ok, frame = self.cap.read()
+            if ok and frame is not None and frame.size:
+                self.undecodable += failed
+                return cast(NDArray[Any], frame)
+            failed += 1
+            if self.kind != "file" or failed >= MAX_UNDECODABLE_RUN:
+                return None
 
     def release(self) -> None:
         cap, self.cap = self.cap, None
@@ -128,6 +150,17 @@ class BackendSlot:
         backend, self.backend = self.backend, None
         if backend is not None:
             backend.release()
+
+
+def file_url_path(source: str) -> str | None:
+    """The path a ``file://`` URL names (``file:///abs/clip.mp4``, ``file://clip.mp4`` relative
+    to the working directory, ``file://localhost/abs/clip.mp4``), or None for any other
+    source: a file is read to its end, not reopened like a stream."""
+    if source[:7].lower() != "file://":
+        return None
+    parts = urllib.parse.urlsplit(source)
+    host = "" if parts.netloc.lower() == "localhost" else parts.netloc
+    return urllib.parse.unquote(host + parts.path)
 
 
 def _natural_key(name: str) -> tuple[tuple[int | str, ...], str]:

@@ -9,12 +9,13 @@ at a time (see ``output_server``). A live progress line (frames, fps, objects, d
 on stderr when it is a terminal. Ctrl-C or SIGTERM end the loop after the frame in hand: what
 was written is flushed, and a summary goes to stderr.
 
-Exit status 1 (after the summary) when every frame read failed, with the count and the first
-and last fault on stderr; at once, before any frame, when the source's frames are not of the
-size the calibration was made on (``FrameSizeError``). Also exit status 1, after the
-summary, when lines were meant for the output and none got there (a full disk, no
-controller at a tcp:// address: ``output_options.undelivered``); losses are warned about on
-stderr while they happen.
+Exit status 1 (after the summary) when no frame was delivered: every frame read failed (with
+the count and the first and last fault on stderr), or the source gave none (a camera that
+never came, a run stopped before its first frame); at once, before any frame, when the
+source's frames are not of the size the calibration was made on (``FrameSizeError``). Also
+exit status 1, after the summary, when lines were meant for the output and none got there (a
+full disk, no controller at a tcp:// address: ``output_options.undelivered``); losses are
+warned about on stderr while they happen.
 """
 
 from __future__ import annotations
@@ -73,10 +74,11 @@ class Progress:
         if not force and now - self._last < PROGRESS_PERIOD_S:
             return
         self._last = now
+        faults = stats.frames_undecodable + stats.frames_wrong_size + stats.failed
         line = (
             f"{stats.frames} frames  {stats.fps:6.1f} fps  {stats.objects} objects  "
-            f"dropped {stats.dropped} frames / {_dropped(output)} messages  "
-            f"faults {stats.corrupt + stats.failed}  reconnects {stats.reconnects}"
+            f"dropped {stats.frames_dropped} frames / {_dropped(output)} messages  "
+            f"faults {faults}  camera reconnects {stats.camera_reconnects}"
         )
         pad = max(0, self._width - len(line))
         self._width = len(line)
@@ -131,18 +133,22 @@ def summary(tracker: Tracker, output: Any, received: list[str]) -> dict[str, Any
     return out
 
 
-def all_frames_failed(tracker: Tracker) -> str | None:
-    """Why the run located nothing when every frame it read failed; None if any frame was
-    processed, or none failed."""
+def nothing_delivered(tracker: Tracker) -> str | None:
+    """Why the run delivered no frame, when it delivered none though frames were asked for
+    (every frame read failed, the source gave none, or the run was stopped first); None if
+    any frame was processed."""
     s = tracker.stats
-    faults = s.corrupt + s.failed
-    if s.frames or not faults:
+    if s.frames or tracker.max_frames == 0:
         return None
+    faults = s.frames_undecodable + s.frames_wrong_size + s.failed
+    if not faults:
+        down = f"; the camera was down {s.camera_down_s:.1f} s" if s.camera_down_s else ""
+        return f"no frame was delivered: {s.read} frames read{down}"
     why = (
-        f"every frame failed: {faults} of the {s.read} frames read ({s.corrupt} undecodable "
-        f"or of the wrong size, {s.failed} failed in detection"
+        f"every frame failed: {faults} of the {s.read} frames read ({s.frames_undecodable} "
+        f"undecodable, {s.frames_wrong_size} of the wrong size, {s.failed} failed in detection"
     )
-    why += f", {s.dropped} dropped)" if s.dropped else ")"
+    why += f", {s.frames_dropped} dropped)" if s.frames_dropped else ")"
     first, last = tracker.first_error, tracker.last_error
     why += f"; first fault: {first}"
     if last is not None and last is not first:
@@ -277,10 +283,9 @@ def output_plan(args: argparse.Namespace) -> OutputPlan:
 
 
 def _source_fault(tracker: Tracker) -> str | None:
-    """Why a trigger cannot be answered now, or None: the camera is being reopened."""
-    if tracker.source_lost:
-        return "the camera is not delivering frames (planarcal is reopening it)"
-    return None
+    """Why a trigger cannot be answered now, or None: the camera is down (being reopened)."""
+    down = tracker.source_down
+    return None if down is None else f"{down}; planarcal is reopening it"
 
 
 def main(args: argparse.Namespace) -> int:
@@ -347,7 +352,7 @@ def main(args: argparse.Namespace) -> int:
     if args.fps_report:
         print(stage_report(tracker.stats, serialise_s), file=sys.stderr)
     print(f"planarcal run: {json.dumps(report, allow_nan=False)}", file=sys.stderr)
-    failure = all_frames_failed(tracker)
+    failure = nothing_delivered(tracker)
     if failure is not None:
         print(f"planarcal run: error: {failure}", file=sys.stderr)
         return 1

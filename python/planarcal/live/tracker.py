@@ -8,16 +8,21 @@ view. Iterating the tracker yields one ``FrameResult`` per frame.
 
 It does not stop on a bad frame:
 
-* a frame that cannot be decoded, or one whose size differs from the source's, is counted
-  (``corrupt``) and skipped;
-* a camera or stream that stops delivering (unplugged, a stalled network), or that is not
-  there yet when the tracker starts (still booting), is opened again with exponential
-  back-off (``reconnects``), for as long as it takes, unless ``max_reconnect_s`` says
-  otherwise (a file or folder that cannot be opened fails at once);
+* a frame that cannot be decoded (a damaged stretch of a video file, a folder's corrupt
+  image) is counted (``frames_undecodable``) and skipped, and so is one whose size differs
+  from the source's (``frames_wrong_size``);
+* a camera or stream that stops delivering (unplugged, a stalled network, a server that
+  closes the connection), or that is not there yet when the tracker starts (still booting),
+  is opened again with exponential back-off, from ``REOPEN_FIRST_S`` up to
+  ``REOPEN_MAX_S`` between attempts, for as long as it takes unless ``max_reconnect_s``
+  says otherwise (``camera_lost``, ``camera_reconnects``, ``camera_down_s``); a file or
+  folder is never reopened: it ends at its end, and one that cannot be opened fails at once;
 * a frame whose processing fails (a detector error) is counted (``failed``) and skipped.
 
-Each fault is logged (logger ``planarcal.live.tracker``; repeated faults at their 1st, 2nd, 4th,
-8th, ... occurrence, so a stream of bad frames does not flood the log).
+Each fault is logged (logger ``planarcal.live.tracker``, a warning; repeated frame faults at
+their 1st, 2nd, 4th, 8th, ... occurrence, so a stream of bad frames does not flood the log; a
+camera that is down at each attempt to reopen it until the back-off reaches its maximum, then
+once a minute).
 
 It does stop on a source whose frames are not of the size the calibration was made on: that
 is a mistake of setup, not a bad frame, and every frame would map to the wrong millimetres.
@@ -29,7 +34,8 @@ Reading runs on its own thread, a couple of frames ahead, so decoding overlaps w
 processing (OpenCV releases the GIL while it decodes and filters; the core releases it while
 it measures a frame's outlines, the bulk of its work).
 With a live source, frames that arrive while the loop is still busy with an older one are
-dropped, the oldest first, and counted (``dropped``): a robot wants the newest positions.
+dropped, the oldest first, and counted (``frames_dropped``): a robot wants the newest
+positions.
 With a file or folder nothing is dropped: the reader waits for the loop.
 
 IDs: nearest-neighbour association in world coordinates. Each object of a frame takes the ID
@@ -63,6 +69,7 @@ from planarcal import _core
 from planarcal.calib.calibration import Calibration
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, ImageError, StateError
 from planarcal.live.capture import Camera, Frame
+from planarcal.live.capture_sources import file_url_path
 from planarcal.live.local_map import STEP_PX
 from planarcal.live.objects import _detect, detect_objects
 from planarcal.robot.output_frame import Coords, checked_frame
@@ -72,6 +79,13 @@ F64 = NDArray[np.float64]
 __all__ = ["FrameResult", "LoopStats", "TrackedObject", "Tracker"]
 
 _log = logging.getLogger("planarcal.live.tracker")
+
+REOPEN_FIRST_S = 0.1
+"""The wait before the first attempt to reopen a camera or stream that stopped, s; it doubles
+after each failed attempt (and after a camera that failed again soon after it was reopened)."""
+
+REOPEN_MAX_S = 5.0
+"""The longest wait between two attempts to reopen a camera or stream, s."""
 
 # The options detect_objects takes (its keyword arguments).
 _DETECT_OPTIONS = frozenset(inspect.signature(detect_objects).parameters) - {"image"}
@@ -154,19 +168,29 @@ class LoopStats:
     """What the loop did so far."""
 
     read: int = 0
-    """Frames taken from the source: processed, failed, corrupt or dropped."""
+    """Frames taken from the source: processed, failed, undecodable, of the wrong size or
+    dropped."""
     frames: int = 0
     """Frames processed and yielded."""
     objects: int = 0
     """Objects located, over all frames."""
-    corrupt: int = 0
-    """Frames that could not be decoded or had the wrong size."""
+    frames_undecodable: int = 0
+    """Frames that could not be decoded (skipped)."""
+    frames_wrong_size: int = 0
+    """Frames whose size differs from the source's first frame (skipped)."""
     failed: int = 0
     """Frames whose processing raised (counted, skipped)."""
-    dropped: int = 0
+    frames_dropped: int = 0
     """Frames of a live source dropped because the loop was busy."""
-    reconnects: int = 0
-    """Times the source was reopened after it stopped delivering."""
+    frames_declared: int | None = None
+    """The number of frames a video file's header declares (None: not a file, or unknown)."""
+    camera_lost: int = 0
+    """Times the camera or stream stopped delivering (and was closed, to be reopened)."""
+    camera_reconnects: int = 0
+    """Times the camera or stream was reopened after it stopped delivering."""
+    camera_down_s: float = 0.0
+    """Seconds during which the camera or stream was not open: lost and being reopened, or
+    not there yet at the start."""
     started: float = dataclasses.field(default_factory=time.monotonic)
     stage_s: dict[str, float] = dataclasses.field(
         default_factory=lambda: {"read": 0.0, "detect": 0.0, "map": 0.0, "track": 0.0}
@@ -184,6 +208,7 @@ class LoopStats:
 
     def to_dict(self) -> dict[str, Any]:
         out = {k: v for k, v in dataclasses.asdict(self).items() if k != "started"}
+        out["camera_down_s"] = round(self.camera_down_s, 3)
         out["elapsed_s"] = round(self.elapsed_s, 3)
         out["fps"] = round(self.fps, 2)
         out["stage_s"] = {k: round(v, 4) for k, v in self.stage_s.items()}
@@ -208,8 +233,8 @@ class Tracker:
         max_jump_mm: the farthest an object may move between frames and keep its ID.
         max_missing: frames an object may go unseen and keep its ID.
         max_frames: stop after reading this many frames from the source, whatever became of
-            them (processed, failed, corrupt or dropped; None: until the source ends or
-            stop()).
+            them (processed, failed, undecodable, of the wrong size or dropped; None: until
+            the source ends or stop()).
         max_reconnect_s: give up reopening a source that stopped after this long (None:
             never; a file or folder is never reopened).
         detect_options: passed to detect_objects (min_area_px, blur_sigma, mask, ...).
@@ -283,12 +308,20 @@ class Tracker:
                     raise
                 # A camera or stream that is not there yet: the reader waits for it as for
                 # one that dropped out.
-                _log.warning("%s; waiting for it", e)
+                _log.warning("camera down: %s; waiting for it", e)
                 self._camera = None
         if self._camera is not None:
             self._check_source_size(self._camera, opened_here=not isinstance(source, Camera))
         self._live = _live_spec(self._spec) if self._camera is None else self._camera.live
         self._ever_opened = self._camera is not None
+        # The camera's state for the reopening: since when it is down (monotonic; None while
+        # it is open) and why, when it was last opened, the wait before the next attempt.
+        self._down_since: float | None = None if self._camera is not None else time.monotonic()
+        self._down_reason = "" if self._camera is not None else "not there yet"
+        self._opened_at = time.monotonic()
+        self._delay = REOPEN_FIRST_S
+        # The camera's loss counters already added to the stats (the camera's own count).
+        self._seen = (0, 0)
         self._stop = threading.Event()
         # Bounded: the reader runs at most this many frames ahead of the loop.
         self._queue: queue.Queue[tuple[int, float, Frame] | _End] = queue.Queue(maxsize=2)
@@ -392,6 +425,16 @@ class Tracker:
         camera = self._camera
         return camera is None or camera.closed
 
+    @property
+    def source_down(self) -> str | None:
+        """Why the source delivers nothing now, and for how long, while ``source_lost``;
+        else None (safe from any thread)."""
+        if not self.source_lost or self._stop.is_set():
+            return None
+        since = self._down_since
+        down = f" for {time.monotonic() - since:.1f} s" if since is not None else ""
+        return f"camera down{down}: not delivering frames ({self._down_reason})"
+
     def stop(self) -> None:
         """Ends the iteration after the frame in hand (safe from a signal handler or another
         thread)."""
@@ -413,6 +456,9 @@ class Tracker:
             self._reader.join(timeout=self._timeout_s + 1.0)
         if self._camera is not None:
             self._camera.close()
+        since, self._down_since = self._down_since, None
+        if since is not None:  # still down at the end: that time counts too
+            self.stats.camera_down_s += time.monotonic() - since
 
     def __enter__(self) -> Tracker:
         return self
@@ -445,7 +491,7 @@ class Tracker:
                 if self._live and not isinstance(item, _End):
                     try:
                         self._queue.get_nowait()
-                        self.stats.dropped += 1
+                        self.stats.frames_dropped += 1
                     except queue.Empty:
                         pass
 
@@ -461,67 +507,154 @@ class Tracker:
                     camera = self._reopen()
                     if camera is None:
                         return
-                try:
-                    frame = camera.read()
-                except CameraError as e:
-                    if camera.ended:
-                        self._put(_End())
-                        return
-                    if camera.closed:
-                        continue  # stopped delivering: reopen with back-off
-                    # A frame that cannot be decoded or has the wrong size: skip it.
-                    self.stats.read += 1
-                    self.stats.corrupt += 1
-                    self._record_fault(e)
-                    _log_fault("frame %d skipped: %s", self.stats.corrupt, index, e)
-                    index += 1
-                    continue
-                self.stats.read += 1
-                self._put((index, time.time(), frame))
-                index += 1
+                next_index = self._read_one(camera, index)
+                if next_index is None:
+                    return
+                index = next_index
         except BaseException as e:  # never die silently: the loop re-raises it
             self._put(_End(e))
 
+    def _read_one(self, camera: Camera, index: int) -> int | None:
+        """Reads one frame and hands it to the loop, or counts why there is none; the next
+        frame's index, or None at the end of a file or folder."""
+        try:
+            frame = camera.read()
+        except CameraError as e:
+            if camera.ended:
+                index = self._count_skipped(camera, index, raised=False)
+                self._file_ended(camera)
+                self._put(_End())
+                return None
+            if camera.closed:  # stopped delivering (and released): reopen with back-off
+                self._lost(e)
+                return index
+            # A folder's image that cannot be decoded, or a frame of the wrong size.
+            index = self._count_skipped(camera, index, raised=True)
+            self.stats.read += 1
+            self._record_fault(e)
+            faults = self.stats.frames_undecodable + self.stats.frames_wrong_size
+            _log_fault("frame %d skipped: %s", faults, index, e)
+            return index + 1
+        index = self._count_skipped(camera, index, raised=False)
+        self.stats.read += 1
+        self._put((index, time.time(), frame))
+        return index + 1
+
+    def _count_skipped(self, camera: Camera, index: int, *, raised: bool) -> int:
+        """Adds the camera's new losses to the stats; the frames a video skipped without
+        raising (undecodable) take their indices, so the next frame's index is returned."""
+        undecodable, wrong = _losses(camera)
+        new_u, new_w = undecodable - self._seen[0], wrong - self._seen[1]
+        self._seen = (undecodable, wrong)
+        self.stats.frames_undecodable += new_u
+        self.stats.frames_wrong_size += new_w
+        skipped = new_u + new_w - (1 if raised else 0)
+        if skipped > 0:
+            self.stats.read += skipped
+            error = CameraError(
+                f"{camera.label}: {skipped} frames could not be decoded (frames {index} to "
+                f"{index + skipped - 1}); skipped"
+            )
+            self._record_fault(error)
+            _log.warning("%s (%d undecodable so far)", error, self.stats.frames_undecodable)
+        return index + max(skipped, 0)
+
+    def _file_ended(self, camera: Camera) -> None:
+        """Says so when a video file ended before the frames its header declares."""
+        declared: int | None = getattr(camera, "frames_declared", None)
+        self.stats.frames_declared = declared
+        got = getattr(camera, "frames_read", 0) + sum(_losses(camera))
+        if declared is not None and got < declared:
+            _log.warning(
+                "%s ended after %d of the %d frames its header declares: the rest could not "
+                "be read (the file is truncated, or damaged at its end)",
+                camera.label,
+                got,
+                declared,
+            )
+
+    def _lost(self, error: CameraError) -> None:
+        """Counts and reports a camera or stream that stopped delivering (it is closed)."""
+        now = time.monotonic()
+        self.stats.camera_lost += 1
+        self._down_since, self._down_reason = now, str(error)
+        # A camera that stayed up a while starts the back-off afresh; one that fails again
+        # soon after it was reopened keeps the longer wait (no tight open-fail cycle).
+        if now - self._opened_at >= REOPEN_MAX_S:
+            self._delay = REOPEN_FIRST_S
+        _log.warning("camera lost: %s; reopening in %.1f s (attempt 1)", error, self._delay)
+
     def _reopen(self) -> Camera | None:
-        """Reopens the source with exponential back-off; None if stopped or out of time."""
+        """Reopens the source with exponential back-off; None if stopped, out of time, or not
+        a camera or stream (a file or folder is not reopened)."""
         if not self._live:
             self._put(_End())
             return None
-        delay, start = 0.1, time.monotonic()
-        while not self._stop.is_set():
+        start = self._down_since if self._down_since is not None else time.monotonic()
+        attempt = 0
+        while not self._stop.wait(self._delay):
+            attempt += 1
             try:
-                self._camera = Camera(self._spec, timeout_s=self._timeout_s, color=False)
-                again = "again " if self._ever_opened else ""
-                self.stats.reconnects += self._ever_opened
-                self._ever_opened = True
-                _log.warning(
-                    "%s open %safter %.1f s", self._camera.label, again, time.monotonic() - start
-                )
-                return self._camera
+                camera = Camera(self._spec, timeout_s=self._timeout_s, color=False)
             except CameraError as e:
-                waited = time.monotonic() - start
-                _log.warning("%s; retrying in %.1f s", e, delay)
-                if self.max_reconnect_s is not None and waited >= self.max_reconnect_s:
-                    self._put(
-                        _End(
-                            CameraError(
-                                f"gave up reopening {self._spec!r} after {waited:.1f} s: {e}"
-                            )
-                        )
-                    )
+                if not self._reopen_failed(e, start, attempt):
                     return None
-                self._stop.wait(delay)
-                delay = min(2 * delay, 5.0)
+                continue
+            now = time.monotonic()
+            self._camera, self._seen, self._opened_at = camera, (0, 0), now
+            self.stats.camera_reconnects += self._ever_opened
+            self.stats.camera_down_s += now - start
+            self._down_since = None
+            again = "again " if self._ever_opened else ""
+            self._ever_opened = True
+            _log.warning(
+                "camera back: %s open %safter %.1f s (attempt %d)",
+                camera.label,
+                again,
+                now - start,
+                attempt,
+            )
+            return camera
         return None
+
+    def _reopen_failed(self, error: CameraError, start: float, attempt: int) -> bool:
+        """Logs a failed attempt and lengthens the wait; False (after ending the loop with
+        the reason) once ``max_reconnect_s`` has passed."""
+        waited = time.monotonic() - start
+        self._down_reason = str(error)
+        if self.max_reconnect_s is not None and waited >= self.max_reconnect_s:
+            why = f"gave up reopening {self._spec!r} after {waited:.1f} s: {error}"
+            self._put(_End(CameraError(why)))
+            return False
+        self._delay = min(2 * self._delay, REOPEN_MAX_S)
+        # Each attempt while the wait grows, then once a minute.
+        if self._delay < REOPEN_MAX_S or attempt % round(60 / REOPEN_MAX_S) == 0:
+            _log.warning(
+                "camera down for %.1f s: %s; reopening in %.1f s (attempt %d)",
+                waited,
+                error,
+                self._delay,
+                attempt + 1,
+            )
+        return True
 
     # -- tracking ----------------------------------------------------------------------------
 
 
 def _live_spec(source: object) -> bool:
-    """A camera device index or a stream's URL (as Camera tells them from paths)."""
+    """A camera device index or a stream's URL (as Camera tells them from paths; a file://
+    URL is a file)."""
     if isinstance(source, bool):
         return False
-    return isinstance(source, int | np.integer) or (isinstance(source, str) and "://" in source)
+    if isinstance(source, str):
+        return "://" in source and file_url_path(source) is None
+    return isinstance(source, int | np.integer)
+
+
+def _losses(camera: Camera) -> tuple[int, int]:
+    """The camera's frames_undecodable and frames_wrong_size; a Camera-like source without
+    these counters (a wrapper around a Camera) counts none."""
+    return getattr(camera, "frames_undecodable", 0), getattr(camera, "frames_wrong_size", 0)
 
 
 def _log_fault(message: str, count: int, *args: object) -> None:
