@@ -4,9 +4,10 @@ the argument and, for points, the first point at fault."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterable
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -57,13 +58,16 @@ def real_array(
     cannot be converted (``what`` says what was expected). Finiteness is the caller's to check
     (it knows which point to name)."""
     try:
-        bad = _first_not_real(value)
-    except (TypeError, ValueError):  # a ragged nesting
+        natural = value if isinstance(value, np.ndarray) else np.asarray(value)
+        bad = _first_not_real(value, natural)
+    except (TypeError, ValueError, OverflowError):  # a ragged nesting
         raise exc(f"{name} must be {what}") from None
     if bad is not None:
         raise exc(f"{name} must hold real numbers, got {bad!r} (a {type(bad).__name__})")
     try:
-        out: F64 = np.asarray(value, dtype=np.float64)
+        # Numbers already read as numbers are not read again from the Python objects.
+        source = natural if natural.dtype.kind in "fiu" else value
+        out: F64 = np.asarray(source, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
         raise exc(f"{name} must be {what}") from None
     return out
@@ -74,13 +78,29 @@ _NOT_REAL = (str, bytes, bool, np.bool_, complex, np.complexfloating)
 _NOT_REAL_KINDS = "USbcVmM"
 
 
-def _first_not_real(value: ArrayLike) -> object | None:
-    """The first element of value that is not a real number, or None."""
-    if isinstance(value, np.ndarray) and value.dtype.kind != "O":
-        return value.flat[0] if value.dtype.kind in _NOT_REAL_KINDS and value.size else None
-    # As objects: a float dtype would turn a list's True or "2" into a number silently.
+def _first_not_real(value: ArrayLike, natural: NDArray[Any]) -> object | None:
+    """The first element of value (``natural``: as NumPy reads it) that is not a real
+    number, or None."""
+    if natural.dtype.kind in "fiu":
+        if natural is value or not _holds_bools(value, natural.ndim):
+            return None
+    elif natural.dtype.kind != "O" and natural is value:
+        return natural.flat[0] if natural.dtype.kind in _NOT_REAL_KINDS and value.size else None
+    # The slow way, element by element as objects: a float dtype would have turned a list's
+    # True into 1.0, and a str dtype every number into a string.
     elements = value if isinstance(value, np.ndarray) else np.asarray(value, dtype=object)
     return next((x for x in elements.flat if isinstance(x, _NOT_REAL)), None)
+
+
+def _holds_bools(value: ArrayLike, ndim: int) -> bool:
+    """Whether the nested sequence value (ndim deep) has a bool among its leaves, which
+    NumPy converts to 1.0 among floats: one pass over the leaves' types."""
+    if ndim == 0:
+        return isinstance(value, bool | np.bool_)
+    leaves: Iterable[object] = cast("Iterable[object]", value)
+    for _ in range(ndim - 1):
+        leaves = itertools.chain.from_iterable(cast("Iterable[Iterable[object]]", leaves))
+    return any(issubclass(t, bool | np.bool_) for t in set(map(type, leaves)))
 
 
 def points(
