@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -640,3 +641,19 @@ def test_a_dict_from_before_the_hand_option_still_refits() -> None:
         RobotFrame.from_dict(guessed)
     with pytest.raises(pc.CalibrationFileError, match="handedness must be"):
         RobotFrame.from_dict({**row.to_dict(), "handedness": "mirrored"})
+
+
+def test_calibration_register_refuses_what_is_not_a_real_number() -> None:
+    cal = pc.Calibration.load(Path(__file__).parent / "data" / "calibration_v2.json")
+    dots = [0, 13, 126, 139]
+    robot = _map(_mirrored_robot(np.random.default_rng(2)), BOARD[dots])
+    as_text = [[str(x) for x in row] for row in robot]
+    with pytest.raises(pc.ArgumentError, match="robot_mm must hold real numbers, got '"):
+        cal.register(as_text, dots=dots)
+    with pytest.raises(pc.ArgumentError, match=r"robot_mm must hold real numbers.*complex"):
+        cal.register(robot + 0j, dots=dots)
+    with pytest.raises(pc.ArgumentError, match="board_mm must hold real numbers, got True"):
+        cal.register(robot, board_mm=[[True, 0.0], *BOARD[dots[1:]].tolist()])
+    with pytest.raises(pc.ArgumentError, match="image_px must hold real numbers"):
+        cal.register(robot, image_px=np.array([["1", "2"]] * 4))
+    assert cal.register(robot.tolist(), dots=dots).robot_frame is not None
