@@ -585,7 +585,7 @@ def test_bad_output_arguments_are_refused_before_the_camera_opens(
         ["run", "--source", str(tmp_path / "none.avi"), "--calibration", "none.json", *options]
     )
     err = capsys.readouterr().err
-    assert code == 1 and re.search(message, err), err
+    assert code == 2 and re.search(message, err), err  # 2: a malformed command line
     assert camera.attempts == 0
 
 
