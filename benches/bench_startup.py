@@ -1,7 +1,9 @@
 """Start-up time of the command line: a fresh process for each run, as a user starts it, the
 median of many, interleaved so that the machine's other load falls on every case alike.
 `python -c pass` is the floor no command can go below; "every command's modules" is what
-each command loaded before they were imported lazily (issue 21).
+each command loaded before they were imported lazily (issue 21). The CPU time (user + system)
+of each process is given beside its wall time: on a machine busy with other work the wall
+time grows with the wait for a core, the CPU time much less.
 
     python benches/bench_startup.py [--repeats 21] [--markdown]
 """
@@ -9,6 +11,7 @@ each command loaded before they were imported lazily (issue 21).
 from __future__ import annotations
 
 import argparse
+import resource
 import shutil
 import statistics
 import subprocess
@@ -40,10 +43,15 @@ def cases() -> list[tuple[str, list[str]]]:
     ]
 
 
-def once(argv: list[str]) -> float:
+def once(argv: list[str]) -> tuple[float, float]:
+    """(wall, CPU) seconds of one run of `argv` in a fresh process."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
-    return time.perf_counter() - t
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
 
 
 def main() -> None:
@@ -54,24 +62,28 @@ def main() -> None:
     todo = cases()
     for _, argv in todo:  # warm the file cache: the first start reads everything from disk
         once(argv)
-    times: dict[str, list[float]] = {name: [] for name, _ in todo}
+    walls: dict[str, list[float]] = {name: [] for name, _ in todo}
+    cpus: dict[str, list[float]] = {name: [] for name, _ in todo}
     for _ in range(args.repeats):
         for name, argv in todo:
-            times[name].append(once(argv))
-    floor = statistics.median(times[todo[0][0]])
+            wall, cpu = once(argv)
+            walls[name].append(wall)
+            cpus[name].append(cpu)
+    floor = statistics.median(walls[todo[0][0]])
     rows = []
     for name, _ in todo:
-        median = statistics.median(times[name])
+        median = statistics.median(walls[name])
         rows.append(
             [
                 name,
                 f"{median * 1e3:.0f}",
-                f"{min(times[name]) * 1e3:.0f}",
+                f"{min(walls[name]) * 1e3:.0f}",
                 f"{(median - floor) * 1e3:+.0f}",
+                f"{statistics.median(cpus[name]) * 1e3:.0f}",
             ]
         )
-    headers = ["command", "median (ms)", "best (ms)", "above the floor (ms)"]
-    for line in table_lines(headers, [False, True, True, True], rows, args.markdown):
+    headers = ["command", "median (ms)", "best (ms)", "above the floor (ms)", "CPU, median (ms)"]
+    for line in table_lines(headers, [False, True, True, True, True], rows, args.markdown):
         print(line)
     print()
     print(f"{args.repeats} runs of each, a fresh process each time; {cpu_model()}")
