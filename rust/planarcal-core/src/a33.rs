@@ -8,6 +8,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix3};
 
+use crate::alloc;
 use crate::correspondences::Correspondences;
 use crate::error::{HomographyError, Result};
 
@@ -34,8 +35,8 @@ pub fn check_h33(reference: &Matrix3<f64>, c: &Correspondences) -> Result<()> {
 /// estimated relative rounding error of the solution exceeds `max_forward_error`.
 pub fn a33_least_squares(c: &Correspondences, max_forward_error: f64) -> Result<Matrix3<f64>> {
     let n = c.len();
-    let mut a = DMatrix::<f64>::zeros(2 * n, 8);
-    let mut b = DVector::<f64>::zeros(2 * n);
+    let mut a = DMatrix::from_vec(2 * n, 8, alloc::filled(0.0, 2 * n * 8)?);
+    let mut b = DVector::from_vec(alloc::filled(0.0, 2 * n)?);
     for (i, (s, d)) in c.src.iter().zip(c.dst).enumerate() {
         let (sx, sy, dx, dy) = (s[0], s[1], d[0], d[1]);
         let row1 = [sx, sy, 1.0, 0.0, 0.0, 0.0, -dx * sx, -dx * sy];

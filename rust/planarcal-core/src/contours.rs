@@ -8,9 +8,11 @@
 //! are those of the refined outline. The objects
 //! come in reading order (`reading_order`), which is how their IDs are numbered.
 
+use crate::alloc;
+use crate::error::Result;
 use crate::image::{GreyU8, Rect};
 use crate::outline::{area_centroid, central_moments, refine_outline, Grey, MIN_POINTS};
-use crate::smooth::gaussian_region;
+use crate::smooth::{gaussian_region, reserve_region};
 use crate::Point;
 
 /// Which contours are objects.
@@ -56,29 +58,34 @@ pub fn fewest_points(min_area: f64) -> f64 {
 }
 
 /// The objects among `contours` (each a closed polygon of pixel positions), in reading order.
+/// OutOfMemory when an outline or the smoothed region around it cannot be allocated.
 pub fn measure_contours(
     image: GreyU8<'_>,
     contours: &[&[[i32; 2]]],
     filter: &ContourFilter,
-) -> Vec<MeasuredObject> {
+) -> Result<Vec<MeasuredObject>> {
     let shortest = fewest_points(filter.min_area);
-    let candidates: Vec<usize> = (0..contours.len())
-        .filter(|&i| !contours[i].is_empty() && contours[i].len() as f64 >= shortest)
-        .collect();
     // One thread: the per-frame work is too short for the pool (waking its threads costs as
     // much as they would save).
     let mut buffers = (Vec::new(), Vec::new());
-    let found: Vec<MeasuredObject> = candidates
-        .into_iter()
-        .filter_map(|i| measure_one(image, i, contours[i], filter, &mut buffers))
-        .collect();
-    let centroids: Vec<Point> = found.iter().map(|o| o.centroid).collect();
-    let heights: Vec<f64> = found.iter().map(|o| o.bbox[3] as f64).collect();
-    let mut slots: Vec<Option<MeasuredObject>> = found.into_iter().map(Some).collect();
-    reading_order(&centroids, &heights)
-        .into_iter()
-        .filter_map(|i| slots[i].take())
-        .collect()
+    let mut found = Vec::new();
+    for (i, contour) in contours.iter().enumerate() {
+        if contour.is_empty() || (contour.len() as f64) < shortest {
+            continue;
+        }
+        if let Some(object) = measure_one(image, i, contour, filter, &mut buffers)? {
+            alloc::reserve(&mut found, 1)?;
+            found.push(object);
+        }
+    }
+    let centroids = alloc::collect(found.iter().map(|o| o.centroid))?;
+    let heights = alloc::collect(found.iter().map(|o| o.bbox[3] as f64))?;
+    let mut slots = alloc::collect(found.into_iter().map(Some))?;
+    alloc::collect(
+        reading_order(&centroids, &heights)?
+            .into_iter()
+            .filter_map(|i| slots[i].take()),
+    )
 }
 
 /// One contour, if it is an object (`buffers`: the smoothing's, reused from one to the next).
@@ -88,17 +95,17 @@ fn measure_one(
     contour: &[[i32; 2]],
     filter: &ContourFilter,
     buffers: &mut (Vec<f32>, Vec<f32>),
-) -> Option<MeasuredObject> {
+) -> Result<Option<MeasuredObject>> {
     let (w, h) = (image.width as i64, image.height as i64);
-    let traced: Vec<Point> = contour.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
+    let traced = alloc::collect(contour.iter().map(|p| [p[0] as f64, p[1] as f64]))?;
     let (area, centroid) = area_centroid(&traced);
     if !(filter.min_area <= area && area <= filter.max_area) {
-        return None;
+        return Ok(None);
     }
     let bbox = bounding_box(contour);
     let [x, y, bw, bh] = bbox;
     if !filter.keep_border && (x <= 0 || y <= 0 || x + bw >= w || y + bh >= h) {
-        return None;
+        return Ok(None);
     }
     let mut object = MeasuredObject {
         contour: index,
@@ -109,23 +116,23 @@ fn measure_one(
         outline: traced,
     };
     if filter.subpixel && contour.len() >= MIN_POINTS {
-        refine(image, &mut object, buffers);
+        refine(image, &mut object, buffers)?;
     }
     // Of the outline as it ends (refined, or traced where it could not be): translation
     // does not change central moments, so the region's coordinates would do as well.
     object.moments = central_moments(&object.outline);
-    Some(object)
+    Ok(Some(object))
 }
 
 /// Indices of objects in reading order: rows from the top (an object joins a row when its
 /// centre is within half the median object height of the row's first), left to right within
 /// a row; ties keep their given order.
-pub fn reading_order(centroids: &[Point], heights: &[f64]) -> Vec<usize> {
+pub fn reading_order(centroids: &[Point], heights: &[f64]) -> Result<Vec<usize>> {
     let n = centroids.len().min(heights.len());
     if n == 0 {
-        return Vec::new();
+        return Ok(Vec::new());
     }
-    let mut sorted = heights[..n].to_vec();
+    let mut sorted = alloc::collect(heights[..n].iter().copied())?;
     sorted.sort_by(f64::total_cmp);
     let median = if n % 2 == 1 {
         sorted[n / 2]
@@ -133,9 +140,9 @@ pub fn reading_order(centroids: &[Point], heights: &[f64]) -> Vec<usize> {
         0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
     };
     let reach = 0.5 * median;
-    let mut by_y: Vec<usize> = (0..n).collect();
+    let mut by_y = alloc::collect(0..n)?;
     by_y.sort_by(|&a, &b| centroids[a][1].total_cmp(&centroids[b][1]));
-    let mut row_of = vec![0usize; n];
+    let mut row_of = alloc::filled(0usize, n)?;
     let (mut row, mut first_y) = (0, centroids[by_y[0]][1]);
     for &i in &by_y {
         let y = centroids[i][1];
@@ -150,7 +157,7 @@ pub fn reading_order(centroids: &[Point], heights: &[f64]) -> Vec<usize> {
             .cmp(&row_of[b])
             .then(centroids[a][0].total_cmp(&centroids[b][0]))
     });
-    by_y
+    Ok(by_y)
 }
 
 /// x, y, width, height of the smallest whole-pixel box holding every point.
@@ -170,7 +177,11 @@ fn bounding_box(contour: &[[i32; 2]]) -> [i64; 4] {
 /// The object's outline moved to its edge, with the area and centroid it then encloses (its
 /// moments are taken by the caller); left
 /// as traced when its region is empty (a contour off the frame).
-fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, buffers: &mut (Vec<f32>, Vec<f32>)) {
+fn refine(
+    image: GreyU8<'_>,
+    object: &mut MeasuredObject,
+    buffers: &mut (Vec<f32>, Vec<f32>),
+) -> Result<()> {
     let (region, scratch) = buffers;
     let (w, h) = (image.width as i64, image.height as i64);
     let [x, y, bw, bh] = object.bbox;
@@ -180,8 +191,9 @@ fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, buffers: &mut (Vec<f32
         x1: (x + bw + EDGE_PAD).clamp(0, w) as usize,
         y1: (y + bh + EDGE_PAD).clamp(0, h) as usize,
     };
+    reserve_region(rect, region, scratch)?;
     if !gaussian_region(image, rect, region, scratch) {
-        return;
+        return Ok(());
     }
     // The search and the centroid work in the region's coordinates (whole-pixel shifts,
     // exact), in place.
@@ -201,6 +213,7 @@ fn refine(image: GreyU8<'_>, object: &mut MeasuredObject, buffers: &mut (Vec<f32
         object.centroid = [cx + ox, cy + oy];
     }
     shift(&mut object.outline, ox, oy);
+    Ok(())
 }
 
 #[cfg(test)]
@@ -258,7 +271,7 @@ mod tests {
             height: h,
         };
         let ring = traced_ring(c, r);
-        let found = measure_contours(image, &[&ring], &all());
+        let found = measure_contours(image, &[&ring], &all()).unwrap();
         assert_eq!(found.len(), 1);
         let o = &found[0];
         assert!((o.centroid[0] - c[0]).abs() < 0.03, "{:?}", o.centroid);
@@ -285,7 +298,8 @@ mod tests {
                 subpixel: false,
                 ..all()
             },
-        );
+        )
+        .unwrap();
         let traced: Vec<Point> = ring.iter().map(|p| [p[0] as f64, p[1] as f64]).collect();
         let (area, centre) = area_centroid(&traced);
         assert_eq!((plain[0].area, plain[0].centroid), (area, centre));
@@ -332,7 +346,7 @@ mod tests {
         if ring.first() == ring.last() {
             ring.pop();
         }
-        let o = &measure_contours(image, &[&ring], &all())[0];
+        let o = &measure_contours(image, &[&ring], &all()).unwrap()[0];
         let [m20, m11, m02] = o.moments;
         let axis = 0.5 * (2.0 * m11).atan2(m20 - m02);
         assert!((axis.to_degrees() - 30.0).abs() < 0.1, "{:?}", o.moments);
@@ -364,10 +378,10 @@ mod tests {
         };
         let rings: Vec<Vec<[i32; 2]>> = centres.iter().map(|c| traced_ring(*c, 18.0)).collect();
         let all_rings: Vec<&[[i32; 2]]> = rings.iter().map(|r| r.as_slice()).collect();
-        let together = measure_contours(image, &all_rings, &all());
+        let together = measure_contours(image, &all_rings, &all()).unwrap();
         assert_eq!(together.len(), 12);
         for o in &together {
-            let alone = measure_contours(image, &[&rings[o.contour]], &all());
+            let alone = measure_contours(image, &[&rings[o.contour]], &all()).unwrap();
             assert_eq!(
                 (o.area, o.centroid, &o.outline),
                 (alone[0].area, alone[0].centroid, &alone[0].outline)
@@ -406,7 +420,7 @@ mod tests {
                 height: h,
             };
             let ring = traced_ring(c, r);
-            let o = &measure_contours(image, &[&ring], &all())[0];
+            let o = &measure_contours(image, &[&ring], &all()).unwrap()[0];
             centre_err += (o.centroid[0] - c[0]).hypot(o.centroid[1] - c[1]) / 100.0;
             radius_err += ((o.area / std::f64::consts::PI).sqrt() - r) / 100.0;
         }
@@ -442,7 +456,7 @@ mod tests {
             v
         };
         let (inner, touching, small) = (square(10, 10, 20), square(0, 5, 20), square(40, 30, 3));
-        let found = measure_contours(image, &[&touching, &small, &inner, &[]], &all());
+        let found = measure_contours(image, &[&touching, &small, &inner, &[]], &all()).unwrap();
         // The border square and the empty contour are dropped; the small one is kept (below
         // the big one: second in reading order).
         assert_eq!(
@@ -454,7 +468,7 @@ mod tests {
             min_area: 100.0,
             ..all()
         };
-        let found = measure_contours(image, &[&touching, &small, &inner], &keep);
+        let found = measure_contours(image, &[&touching, &small, &inner], &keep).unwrap();
         assert_eq!(
             found.iter().map(|o| o.contour).collect::<Vec<_>>(),
             vec![0, 2]
@@ -466,7 +480,10 @@ mod tests {
             max_area: 399.0,
             ..all()
         };
-        assert_eq!(measure_contours(image, &[&inner], &capped).len(), 0);
+        assert_eq!(
+            measure_contours(image, &[&inner], &capped).unwrap().len(),
+            0
+        );
     }
 
     #[test]
@@ -480,8 +497,11 @@ mod tests {
             [70.0, 10.0],
         ];
         let heights = [10.0; 5];
-        assert_eq!(reading_order(&centroids, &heights), vec![1, 2, 4, 3, 0]);
-        assert!(reading_order(&[], &[]).is_empty());
+        assert_eq!(
+            reading_order(&centroids, &heights).unwrap(),
+            vec![1, 2, 4, 3, 0]
+        );
+        assert!(reading_order(&[], &[]).unwrap().is_empty());
     }
 
     #[test]
@@ -497,7 +517,7 @@ mod tests {
             keep_border: true,
             ..all()
         };
-        let found = measure_contours(image, &[&far], &keep);
+        let found = measure_contours(image, &[&far], &keep).unwrap();
         assert_eq!(found.len(), 1);
         assert!(found[0].centroid.iter().all(|v| v.is_finite()));
     }

@@ -37,11 +37,12 @@ pub fn check_finite(points: &[Point], set: PointSet) -> Result<()> {
 fn normalise_set(points: &[Point], set: PointSet) -> Result<Normalization> {
     check_finite(points, set)?;
     let stats = PointStats::of(points);
-    let norm =
-        Normalization::from_stats(&stats).ok_or_else(|| HomographyError::TooFewDistinct {
+    let Some(norm) = Normalization::from_stats(&stats) else {
+        return Err(HomographyError::TooFewDistinct {
             set,
-            distinct: count_distinct(points).min(1),
-        })?;
+            distinct: count_distinct(points)?.min(1),
+        });
+    };
     if !has_clear_general_position(points, &stats) {
         check_general_position(points, set, COLLINEAR_TOL)?;
     }

@@ -3,6 +3,7 @@
 //! that has fewer than 4 distinct points, leaves the linear system rank-deficient (or, in the
 //! destination, forces a singular map). These checks say which, so the error can name it.
 
+use crate::alloc;
 use crate::error::{HomographyError, PointSet, Result};
 use crate::normalize::PointStats;
 use crate::Point;
@@ -23,20 +24,21 @@ fn eig2(a: f64, b: f64, c: f64) -> (f64, f64) {
 
 /// Largest distance of the points (all but `skip`) from their total-least-squares line,
 /// relative to their RMS distance from their centroid. Zero when they all coincide.
-pub fn line_deviation(points: &[Point], skip: Option<usize>) -> f64 {
-    let kept: Vec<Point> = points
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| Some(*i) != skip)
-        .map(|(_, p)| *p)
-        .collect();
+pub fn line_deviation(points: &[Point], skip: Option<usize>) -> Result<f64> {
+    let kept = alloc::collect(
+        points
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| Some(*i) != skip)
+            .map(|(_, p)| *p),
+    )?;
     if kept.len() < 2 {
-        return 0.0;
+        return Ok(0.0);
     }
     let stats = PointStats::of(&kept);
     let rms = stats.mean_sq().sqrt();
     if !(rms > 0.0) {
-        return 0.0;
+        return Ok(0.0);
     }
     // Direction of the principal axis; the deviation is measured along its normal, in units.
     let theta = 0.5 * (2.0 * stats.sxy).atan2(stats.sxx - stats.syy);
@@ -46,7 +48,7 @@ pub fn line_deviation(points: &[Point], skip: Option<usize>) -> f64 {
         .iter()
         .map(|p| (nx * ((p[0] - cx) * inv) + ny * ((p[1] - cy) * inv)).abs())
         .fold(0.0, f64::max);
-    worst / rms
+    Ok(worst / rms)
 }
 
 /// The points whose removal may leave the others collinear (none when no single removal
@@ -94,8 +96,8 @@ fn all_but_one_candidates(points: &[Point], stats: &PointStats) -> Vec<usize> {
 }
 
 /// Indices of the first occurrence of each distinct point (exact comparison), ascending.
-pub fn distinct_points(points: &[Point]) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..points.len()).collect();
+pub fn distinct_points(points: &[Point]) -> Result<Vec<usize>> {
+    let mut order = alloc::collect(0..points.len())?;
     let key = |i: &usize| (points[*i][0], points[*i][1]);
     order.sort_by(|a, b| {
         let (ka, kb) = (key(a), key(b));
@@ -105,12 +107,12 @@ pub fn distinct_points(points: &[Point]) -> Vec<usize> {
     });
     order.dedup_by(|later, first| points[*later] == points[*first]);
     order.sort_unstable();
-    order
+    Ok(order)
 }
 
 /// Number of distinct points (exact comparison).
-pub fn count_distinct(points: &[Point]) -> usize {
-    distinct_points(points).len()
+pub fn count_distinct(points: &[Point]) -> Result<usize> {
+    Ok(distinct_points(points)?.len())
 }
 
 /// Twice the signed area of the triangle (u, v, p), |uv| times the distance of p from line
@@ -215,15 +217,15 @@ fn greedy_general_position(points: &[Point], stats: &PointStats) -> bool {
 /// points are collinear, or collinear but for one, within `tol`. Otherwise the set holds 4
 /// points in general position.
 pub fn check_general_position(points: &[Point], set: PointSet, tol: f64) -> Result<()> {
-    let distinct = distinct_points(points);
+    let distinct = distinct_points(points)?;
     if distinct.len() < 4 {
         return Err(HomographyError::TooFewDistinct {
             set,
             distinct: distinct.len(),
         });
     }
-    let unique: Vec<Point> = distinct.iter().map(|&i| points[i]).collect();
-    let dev = line_deviation(&unique, None);
+    let unique = alloc::collect(distinct.iter().map(|&i| points[i]))?;
+    let dev = line_deviation(&unique, None)?;
     if dev <= tol {
         return Err(HomographyError::Collinear {
             set,
@@ -231,7 +233,7 @@ pub fn check_general_position(points: &[Point], set: PointSet, tol: f64) -> Resu
         });
     }
     for k in all_but_one_candidates(&unique, &PointStats::of(&unique)) {
-        let dev = line_deviation(&unique, Some(k));
+        let dev = line_deviation(&unique, Some(k))?;
         if dev <= tol {
             return Err(HomographyError::AllButOneCollinear {
                 set,
@@ -336,7 +338,7 @@ mod tests {
                 distinct: 3
             })
         );
-        assert_eq!(count_distinct(&pts), 3);
+        assert_eq!(count_distinct(&pts).unwrap(), 3);
     }
 
     #[test]

@@ -13,6 +13,7 @@
 
 use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
 
+use crate::alloc;
 use crate::correspondences::Correspondences;
 use crate::degeneracy::explain_rank_deficiency;
 use crate::error::{HomographyError, Result};
@@ -166,7 +167,7 @@ pub fn plain_dlt(c: &Correspondences, max_forward_error: f64) -> Result<Matrix3<
     let n = c.len();
     // Two rows a point; a zero row pads the 4-point case to 9 x 9 (nalgebra's SVD is thin).
     let rows = (2 * n).max(9);
-    let mut a = DMatrix::<f64>::zeros(rows, 9);
+    let mut a = DMatrix::from_vec(rows, 9, alloc::filled(0.0, rows * 9)?);
     for (i, (s, d)) in c.src.iter().zip(c.dst).enumerate() {
         let (sx, sy, dx, dy) = (s[0], s[1], d[0], d[1]);
         let r = 2 * i;
@@ -177,6 +178,9 @@ pub fn plain_dlt(c: &Correspondences, max_forward_error: f64) -> Result<Matrix3<
             a[(r + 1, k)] = row2[k];
         }
     }
+    // The bidiagonalisation's work vector, one number a row, is allocated inside nalgebra,
+    // which cannot fail: the room for it is checked here first.
+    drop(alloc::with_capacity::<f64>(rows)?);
     // Unordered: nalgebra's ordering panics on a NaN singular value (an overflowed entry);
     // the order is taken below with total_cmp, and a NaN fails the conditioning test.
     let svd = a

@@ -198,6 +198,16 @@ pub enum HomographyError {
         ratio: f64,
     },
 
+    /// A buffer proportional to the input could not be allocated.
+    #[error(
+        "not enough memory: a buffer of {bytes} bytes for this many points could not be \
+         allocated"
+    )]
+    OutOfMemory {
+        /// The size of the buffer refused.
+        bytes: usize,
+    },
+
     /// The caller asked a long search to stop (Ctrl-C, in Python).
     #[error("interrupted after {iterations} iterations")]
     Interrupted {

@@ -107,7 +107,7 @@ pub fn estimate(src: &[Point], dst: &[Point], solver: Solver, refine: bool) -> R
             Fit::Normalized(hn) => hn,
             Fit::Raw(h) => c.normalize_h(&h),
         };
-        let (hn, report) = levenberg_marquardt(&c, &hn);
+        let (hn, report) = levenberg_marquardt(&c, &hn)?;
         check_not_singular(&hn)?;
         (denormalize(&c, &hn)?, Some(report))
     } else {
@@ -135,7 +135,7 @@ pub fn estimate(src: &[Point], dst: &[Point], solver: Solver, refine: bool) -> R
 /// `estimate`'s results.
 pub fn refine_homography(src: &[Point], dst: &[Point], start: &Matrix3<f64>) -> Result<Estimate> {
     let c = Correspondences::new(src, dst)?;
-    let (hn, report) = levenberg_marquardt(&c, &c.normalize_h(start));
+    let (hn, report) = levenberg_marquardt(&c, &c.normalize_h(start))?;
     check_not_singular(&hn)?;
     Ok(Estimate {
         h: orient_and_scale(&denormalize(&c, &hn)?, src)?,

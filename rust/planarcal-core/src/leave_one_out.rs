@@ -6,6 +6,8 @@
 
 use rayon::prelude::*;
 
+use crate::alloc;
+use crate::error::Result;
 use crate::plane_model::{solve, PlaneFit};
 use crate::threads;
 use crate::uncertainty::InversePlane;
@@ -21,13 +23,20 @@ pub struct LooPrediction {
 
 const NAN2: Point = [f64::NAN, f64::NAN];
 
-/// The leave-one-out predictions of every point of a fit.
-pub fn leave_one_out(fit: &PlaneFit, world: &[Point], image: &[Point]) -> Vec<LooPrediction> {
+const FAILED: LooPrediction = LooPrediction {
+    image_px: NAN2,
+    world_mm: NAN2,
+};
+
+/// The leave-one-out predictions of every point of a fit (OutOfMemory when there is no room
+/// for them).
+pub fn leave_one_out(
+    fit: &PlaneFit,
+    world: &[Point],
+    image: &[Point],
+) -> Result<Vec<LooPrediction>> {
     let one = |i: usize| -> LooPrediction {
-        let failed = LooPrediction {
-            image_px: NAN2,
-            world_mm: NAN2,
-        };
+        let failed = FAILED;
         let Ok(solved) = solve(fit.params, world, image, fit.free, Some(i)) else {
             return failed;
         };
@@ -41,11 +50,14 @@ pub fn leave_one_out(fit: &PlaneFit, world: &[Point], image: &[Point]) -> Vec<Lo
             .unwrap_or(NAN2);
         LooPrediction { image_px, world_mm }
     };
+    let mut out = alloc::filled(FAILED, world.len())?;
+    let fill = |(i, slot): (usize, &mut LooPrediction)| *slot = one(i);
     if world.len() >= 16 && threads::pool_allowed() {
-        (0..world.len()).into_par_iter().map(one).collect()
+        out.par_iter_mut().enumerate().for_each(fill);
     } else {
-        (0..world.len()).map(one).collect()
+        out.iter_mut().enumerate().for_each(fill);
     }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -71,7 +83,7 @@ mod tests {
         }
         let loo_rms = |image: &[Point], free: LensParams| {
             let fit = fit_plane(&world, image, free, [1280.0, 720.0]).unwrap();
-            let loo = leave_one_out(&fit, &world, image);
+            let loo = leave_one_out(&fit, &world, image).unwrap();
             let sum: f64 = loo
                 .iter()
                 .zip(image)

@@ -23,6 +23,7 @@
 #![deny(missing_docs)]
 
 mod a33;
+mod alloc;
 mod contours;
 mod correspondences;
 mod degeneracy;
@@ -58,6 +59,7 @@ mod testing;
 /// A 2-D point (x, y).
 pub type Point = [f64; 2];
 
+pub use alloc::{collect as try_collect, filled as try_filled};
 pub use contours::{fewest_points, measure_contours, reading_order, ContourFilter};
 pub use dot_centres::{refine_dot_centres, DotCentre, DotStatus, InkImage};
 pub use error::{HomographyError, PointSet, Result};

@@ -8,7 +8,9 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector};
 
+use crate::alloc;
 use crate::correspondences::Correspondences;
+use crate::error::Result;
 use crate::lm::{self, Damping, LeastSquares, Normal, Options};
 
 type Mat8 = SMatrix<f64, 8, 8>;
@@ -207,8 +209,12 @@ fn from_params(p: &Vec8) -> Matrix3<f64> {
 
 /// Refines a homography given in normalised coordinates; returns it in normalised coordinates
 /// (h33 = 1). Never returns a worse fit than it was given: if the start cannot be refined
-/// (a point behind the horizon), the start comes back unchanged.
-pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f64>, RefineReport) {
+/// (a point behind the horizon), the start comes back unchanged. OutOfMemory when the
+/// points' working copy (32 bytes a point) cannot be allocated.
+pub fn levenberg_marquardt(
+    c: &Correspondences,
+    hn: &Matrix3<f64>,
+) -> Result<(Matrix3<f64>, RefineReport)> {
     let to_caller_units = 1.0 / (c.dst_norm.scale * c.dst_norm.scale);
     let unchanged = || {
         (
@@ -221,13 +227,13 @@ pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f
         )
     };
     let Some(p) = to_params(hn) else {
-        return unchanged();
+        return Ok(unchanged());
     };
     let problem = Transfer {
-        pts: c
-            .normalized_pairs()
-            .map(|([sx, sy], [dx, dy])| [sx, sy, dx, dy])
-            .collect(),
+        pts: alloc::collect(
+            c.normalized_pairs()
+                .map(|([sx, sy], [dx, dy])| [sx, sy, dx, dy]),
+        )?,
     };
     let options = Options {
         // A cost this small is rounding: the data are exact.
@@ -235,16 +241,16 @@ pub fn levenberg_marquardt(c: &Correspondences, hn: &Matrix3<f64>) -> (Matrix3<f
         ..OPTIONS
     };
     let Some(fit) = lm::minimize(&problem, p, &options) else {
-        return unchanged();
+        return Ok(unchanged());
     };
-    (
+    Ok((
         from_params(&fit.x),
         RefineReport {
             iterations: fit.iterations,
             initial_cost: fit.initial_cost * to_caller_units,
             final_cost: fit.at.cost * to_caller_units,
         },
-    )
+    ))
 }
 
 #[cfg(test)]
@@ -286,7 +292,7 @@ mod tests {
         let dst = noisy(&dst, 0.5, 2);
         let c = Correspondences::new(&src, &dst).unwrap();
         let start = normalized_dlt(&c).unwrap();
-        let (refined, report) = levenberg_marquardt(&c, &start);
+        let (refined, report) = levenberg_marquardt(&c, &start).unwrap();
         let before = transfer_cost(&c.denormalize_h(&start), &src, &dst);
         let after = transfer_cost(&c.denormalize_h(&refined), &src, &dst);
         assert!(after <= before);
@@ -305,7 +311,7 @@ mod tests {
     fn exact_data_stays_exact() {
         let (src, dst, truth) = sample_problem(30, 50.0, 10.0);
         let c = Correspondences::new(&src, &dst).unwrap();
-        let (refined, _) = levenberg_marquardt(&c, &normalized_dlt(&c).unwrap());
+        let (refined, _) = levenberg_marquardt(&c, &normalized_dlt(&c).unwrap()).unwrap();
         assert!(relative_h_error(&c.denormalize_h(&refined), &truth) < 1e-11);
     }
 }

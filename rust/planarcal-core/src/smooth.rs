@@ -6,6 +6,8 @@
 //! border the frame is mirrored about its edge pixel (OpenCV's BORDER_REFLECT_101, the
 //! default of its filters), so a rectangle at the border smooths as OpenCV would.
 
+use crate::alloc;
+use crate::error::Result;
 use crate::image::{GreyU8, Rect};
 
 /// The kernel's half-width: four sigmas.
@@ -36,6 +38,16 @@ pub(crate) fn reflect_101(i: isize, n: usize) -> usize {
         i = if i < 0 { -i } else { 2 * (n - 1) - i };
     }
     i as usize
+}
+
+/// Room in `out` and `scratch` for `gaussian_region` of `rect` (a region as large as the
+/// frame is hundreds of megabytes), so that it allocates nothing that can fail.
+pub fn reserve_region(rect: Rect, out: &mut Vec<f32>, scratch: &mut Vec<f32>) -> Result<()> {
+    let (rw, rh) = (rect.width(), rect.height());
+    let wanted = |v: &Vec<f32>, n: usize| n.saturating_sub(v.len());
+    let across = rw.saturating_mul(rh.saturating_add(2 * RADIUS));
+    alloc::reserve(scratch, wanted(scratch, across))?;
+    alloc::reserve(out, wanted(out, rw.saturating_mul(rh)))
 }
 
 /// The rectangle `rect` of `image`, smoothed by a Gaussian of sigma 1 px, into `out` (resized

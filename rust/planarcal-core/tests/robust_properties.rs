@@ -116,7 +116,7 @@ fn problem(n: usize, inlier_fraction: f64, kind: Outliers, seed: u64) -> Problem
         p.inlier.push(good);
     }
     // Interleave inliers and outliers.
-    let order = rng.permutation(n);
+    let order = rng.permutation(n).unwrap();
     p.src = order.iter().map(|&i| p.src[i as usize]).collect();
     p.dst = order.iter().map(|&i| p.dst[i as usize]).collect();
     p.inlier = order.iter().map(|&i| p.inlier[i as usize]).collect();

@@ -4,13 +4,13 @@
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use planarcal_core::{
     fewest_points, measure_contours as measure, median_grey as median, reading_order as order,
-    ContourFilter, GreyU8,
+    try_collect, ContourFilter, GreyU8,
 };
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 
 use crate::convert::{f64_array, points2, u8_image};
-use crate::errors::invalid;
+use crate::errors::{invalid, to_py};
 
 /// The objects' values, as NumPy arrays (index, area, centroid, bbox), a list of outlines
 /// and their moments.
@@ -118,16 +118,18 @@ pub fn measure_contours<'py>(
         keep_border,
         subpixel,
     };
-    let found = py.detach(|| measure(image, &slices, &filter));
+    let found = py
+        .detach(|| measure(image, &slices, &filter))
+        .map_err(to_py)?;
     let n = found.len();
-    let index: Vec<i64> = found.iter().map(|o| positions[o.contour] as i64).collect();
-    let area: Vec<f64> = found.iter().map(|o| o.area).collect();
-    let centroid: Vec<f64> = found.iter().flat_map(|o| o.centroid).collect();
-    let bbox: Vec<i64> = found.iter().flat_map(|o| o.bbox).collect();
-    let moments: Vec<f64> = found.iter().flat_map(|o| o.moments).collect();
+    let index = try_collect(found.iter().map(|o| positions[o.contour] as i64)).map_err(to_py)?;
+    let area = try_collect(found.iter().map(|o| o.area)).map_err(to_py)?;
+    let centroid = try_collect(found.iter().flat_map(|o| o.centroid)).map_err(to_py)?;
+    let bbox = try_collect(found.iter().flat_map(|o| o.bbox)).map_err(to_py)?;
+    let moments = try_collect(found.iter().flat_map(|o| o.moments)).map_err(to_py)?;
     let arrays = PyList::empty(py);
     for o in found.iter().filter(|_| outlines) {
-        let flat: Vec<f64> = o.outline.iter().flatten().copied().collect();
+        let flat = try_collect(o.outline.iter().flatten().copied()).map_err(to_py)?;
         arrays.append(PyArray1::from_vec(py, flat).reshape([o.outline.len(), 2])?)?;
     }
     Ok((
@@ -162,11 +164,9 @@ pub fn reading_order<'py>(
             h.values().len()
         )));
     }
-    let indices = order(points, h.values());
-    Ok(PyArray1::from_iter(
-        py,
-        indices.into_iter().map(|i| i as i64),
-    ))
+    let indices = order(points, h.values()).map_err(to_py)?;
+    let indices = try_collect(indices.into_iter().map(|i| i as i64)).map_err(to_py)?;
+    Ok(PyArray1::from_vec(py, indices))
 }
 
 /// median_grey(grey, row_step=16, col_step=2)

@@ -2,11 +2,13 @@
 //! once in Python (`planarcal/errors.py`, under the root `planarcal.Error`) and looked up here
 //! on first use; all are ValueError subclasses (the input is at fault). Errors that name a point
 //! carry it as attributes, `index` and `point_set` ("src" / "dst"), after the message: the
-//! classes take them positionally, so every error here is made lazily, without the GIL.
+//! classes take them positionally, so every error here is made lazily, without the GIL. A
+//! buffer the core could not allocate is MemoryError, not one of planarcal's.
 
 use planarcal_core::{
     HomographyError as CoreError, LensError, PointFailure, PointReport, PointSet, POINT_FAILURES,
 };
+use pyo3::exceptions::PyMemoryError;
 use pyo3::import_exception;
 use pyo3::PyErr;
 
@@ -49,9 +51,13 @@ pub fn to_py(e: CoreError) -> PyErr {
     to_py_in(e, "")
 }
 
-/// As `to_py`, the message after `context` (say which of several problems failed).
+/// As `to_py`, the message after `context` (say which of several problems failed). A buffer
+/// the core could not allocate is Python's MemoryError, as NumPy's own would be.
 pub fn to_py_in(e: CoreError, context: &str) -> PyErr {
     let (set, index) = e.point();
+    if matches!(e, CoreError::OutOfMemory { .. }) {
+        return PyMemoryError::new_err(format!("{context}{e}"));
+    }
     let a = args(format!("{context}{e}"), index, set);
     if e.is_invalid_argument() {
         ArgumentError::new_err(a)

@@ -5,13 +5,13 @@
 use nalgebra::Matrix2;
 use numpy::{PyArray1, PyArrayMethods};
 use planarcal_core::{
-    fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, FittedMapper, LensParams,
-    PlaneFit, PlaneModel, Point, PointReport, UncertaintyError,
+    fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, try_collect, FittedMapper,
+    LensParams, PlaneFit, PlaneModel, Point, PointReport, UncertaintyError,
 };
 use pyo3::prelude::*;
 
 use crate::convert::{matrix3, points2};
-use crate::errors::{invalid, lens_to_py, no_place, LensModelError};
+use crate::errors::{invalid, lens_to_py, no_place, to_py, LensModelError};
 use crate::estimate::matrix_out;
 use crate::lens::{LensStd, RadialLens as PyLens};
 use crate::transform::{maybe_detach, new_array, on_invalid, OnInvalid};
@@ -337,9 +337,11 @@ impl FittedPlane {
         &self,
         py: Python<'py>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let loo = py.detach(|| leave_one_out(self.plane_fit(), &self.world, &self.image));
-        let image: Vec<f64> = loo.iter().flat_map(|p| p.image_px).collect();
-        let world: Vec<f64> = loo.iter().flat_map(|p| p.world_mm).collect();
+        let loo = py
+            .detach(|| leave_one_out(self.plane_fit(), &self.world, &self.image))
+            .map_err(to_py)?;
+        let image = try_collect(loo.iter().flat_map(|p| p.image_px)).map_err(to_py)?;
+        let world = try_collect(loo.iter().flat_map(|p| p.world_mm)).map_err(to_py)?;
         Ok((array2(py, image, &[2])?, array2(py, world, &[2])?))
     }
 

@@ -8,8 +8,8 @@
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use planarcal_core::{
-    estimate_robust_batch_interruptible, estimate_robust_interruptible, with_unit_h33, Method,
-    Point, RobustOptions, RobustResult as CoreResult, StopReason, MAX_ITERS,
+    estimate_robust_batch_interruptible, estimate_robust_interruptible, try_collect, try_filled,
+    with_unit_h33, Method, Point, RobustOptions, RobustResult as CoreResult, StopReason, MAX_ITERS,
 };
 use pyo3::exceptions::PyOverflowError;
 use pyo3::prelude::*;
@@ -293,7 +293,9 @@ fn scores_arg(scores: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<f64>>> {
             arr.shape
         )));
     }
-    Ok(Some(arr.values().to_vec()))
+    Ok(Some(
+        try_collect(arr.values().iter().copied()).map_err(to_py)?,
+    ))
 }
 
 /// estimate_homography_robust(src, dst, threshold, confidence, max_iters, seed, scores, method)
@@ -388,25 +390,27 @@ pub fn find_homography_robust<'py>(
     let (s, d) = (points2(src, "srcPoints")?, points2(dst, "dstPoints")?);
     let (s, d) = (s.as_points(), d.as_points());
     if ordered {
-        o.scores = Some((0..s.len()).map(|i| -(i as f64)).collect());
+        o.scores = Some(try_collect((0..s.len()).map(|i| -(i as f64))).map_err(to_py)?);
     }
     let signals = Signals::new();
     let r = match py.detach(|| estimate_robust_interruptible(s, d, &o, &|| signals.poll())) {
         Ok(r) => r,
         // No sample of such a set can fit: OpenCV's answer, no homography and an empty mask.
         Err(e) if e.is_degenerate() => {
-            let mask = PyArray1::from_vec(py, vec![0u8; s.len()]).reshape([s.len(), 1])?;
+            let zeros = try_filled(0u8, s.len()).map_err(to_py)?;
+            let mask = PyArray1::from_vec(py, zeros).reshape([s.len(), 1])?;
             return Ok((None, mask));
         }
         Err(e) => return Err(signals.error(e, "")),
     };
     let n = r.inliers.len();
     let h = r.h.as_ref().and_then(with_unit_h33);
-    let mask: Vec<u8> = if h.is_some() {
-        r.inliers.iter().map(|&b| u8::from(b)).collect()
+    let mask = if h.is_some() {
+        try_collect(r.inliers.iter().map(|&b| u8::from(b)))
     } else {
-        vec![0; n]
-    };
+        try_filled(0u8, n)
+    }
+    .map_err(to_py)?;
     let mask = PyArray1::from_vec(py, mask).reshape([n, 1])?;
     Ok((h.map(|h| matrix_out(py, &h)), mask))
 }

@@ -4,6 +4,8 @@
 //! original order (for drawing samples). Residual tests are division-free:
 //! ||d - H s||^2 <= t^2  <=>  |e|^2 <= t^2 w^2 with e = (h1.s - u w, h2.s - v w), w > 0.
 
+use crate::alloc;
+use crate::error::Result;
 use crate::normalize::{Normalization, PointStats};
 use crate::Point;
 
@@ -134,30 +136,41 @@ impl Data {
     }
 
     /// None when all sources (or all destinations) coincide: nothing to normalise.
-    pub fn new(src: &[Point], dst: &[Point], threshold: f64, rng: &mut Pcg32) -> Option<Self> {
-        let src_norm = Normalization::from_stats(&PointStats::of(src))?;
+    /// OutOfMemory when its arrays (80 bytes a point) cannot be allocated.
+    pub fn new(
+        src: &[Point],
+        dst: &[Point],
+        threshold: f64,
+        rng: &mut Pcg32,
+    ) -> Result<Option<Self>> {
+        let Some(src_norm) = Normalization::from_stats(&PointStats::of(src)) else {
+            return Ok(None);
+        };
         let dst_stats = PointStats::of(dst);
-        let dst_norm = Normalization::from_stats(&dst_stats)?;
+        let Some(dst_norm) = Normalization::from_stats(&dst_stats) else {
+            return Ok(None);
+        };
         let n = src.len();
-        let src_n: Vec<[f64; 2]> = src.iter().map(|p| src_norm.apply(p)).collect();
-        let dst_n: Vec<[f64; 2]> = dst.iter().map(|p| dst_norm.apply(p)).collect();
-        let order = rng.permutation(n);
-        let mut position = vec![0u32; n];
+        let src_n = alloc::collect(src.iter().map(|p| src_norm.apply(p)))?;
+        let dst_n = alloc::collect(dst.iter().map(|p| dst_norm.apply(p)))?;
+        let order = rng.permutation(n)?;
+        let mut position = alloc::filled(0u32, n)?;
         for (k, &i) in order.iter().enumerate() {
             position[i as usize] = k as u32;
         }
-        let pick = |a: &[[f64; 2]], c: usize| order.iter().map(|&i| a[i as usize][c]).collect();
+        let pick =
+            |a: &[[f64; 2]], c: usize| alloc::collect(order.iter().map(|&i| a[i as usize][c]));
         let t = threshold * dst_norm.scale;
         // The scatter is in units of `unit`; normalised coordinates are scaled by `scale`.
         let (k, m) = (dst_stats.unit * dst_norm.scale, n as f64);
         let det = (dst_stats.sxx * dst_stats.syy - dst_stats.sxy * dst_stats.sxy).max(0.0);
         let dst_area = (12.0 * det.sqrt() / m * k * k).max(1e-12);
-        Some(Data {
+        Ok(Some(Data {
             n,
-            x: pick(&src_n, 0),
-            y: pick(&src_n, 1),
-            u: pick(&dst_n, 0),
-            v: pick(&dst_n, 1),
+            x: pick(&src_n, 0)?,
+            y: pick(&src_n, 1)?,
+            u: pick(&dst_n, 0)?,
+            v: pick(&dst_n, 1)?,
             src: src_n,
             dst: dst_n,
             order,
@@ -166,7 +179,7 @@ impl Data {
             dst_norm,
             t2: t * t,
             dst_area,
-        })
+        }))
     }
 
     with_avx2!(
@@ -180,7 +193,7 @@ impl Data {
     );
     with_avx2!(
         /// The points within squared threshold `t2` of h (see `inliers_body`).
-        inliers, inliers_avx2, inliers_body, (h: &[f64; 9], t2: f64) -> Vec<u32>
+        inliers, inliers_avx2, inliers_body, (h: &[f64; 9], t2: f64) -> Result<Vec<u32>>
     );
 
     /// Whether point k (evaluation order) is an inlier of h at squared threshold t2.
@@ -276,10 +289,10 @@ impl Data {
     /// Original indices of the points within squared threshold `t2` of h, in evaluation
     /// order (a fixed random order: any prefix is a random subset).
     #[inline(always)]
-    fn inliers_body(&self, h: &[f64; 9], t2: f64) -> Vec<u32> {
+    fn inliers_body(&self, h: &[f64; 9], t2: f64) -> Result<Vec<u32>> {
         // The tests vectorise; the compaction after them is branch-free, since about half the
         // points agree, at random, which defeats prediction.
-        let mut agree = vec![0u8; self.n];
+        let mut agree = alloc::filled(0u8, self.n)?;
         let (blocks, whole) = self.blocks::<LANES>(0, self.n);
         for ((((x, y), u), v), a) in blocks.zip(agree.as_chunks_mut::<LANES>().0) {
             for l in 0..LANES {
@@ -289,14 +302,14 @@ impl Data {
         for k in whole..self.n {
             agree[k] = u8::from(self.agrees(h, k, t2));
         }
-        let mut out = vec![0u32; self.n];
+        let mut out = alloc::filled(0u32, self.n)?;
         let mut count = 0;
         for (k, &a) in agree.iter().enumerate() {
             out[count] = self.order[k];
             count += usize::from(a);
         }
         out.truncate(count);
-        out
+        Ok(out)
     }
 
     /// A model of normalised coordinates in the caller's units: T_d^-1 H T_s.
@@ -306,9 +319,11 @@ impl Data {
     }
 
     /// Squared residuals of all points in evaluation order (LMedS).
-    pub fn residuals2_into(&self, h: &[f64; 9], out: &mut Vec<f64>) {
+    pub fn residuals2_into(&self, h: &[f64; 9], out: &mut Vec<f64>) -> Result<()> {
         out.clear();
+        alloc::reserve(out, self.n)?;
         out.extend((0..self.n).map(|k| self.residual2(h, k)));
+        Ok(())
     }
 }
 
@@ -326,13 +341,13 @@ mod tests {
             .map(|p| [p[0] * 2.0 + 1.0, p[1] * 2.0 - 3.0])
             .collect();
         let mut rng = Pcg32::new(0, 0);
-        let d = Data::new(&src, &dst, 0.5, &mut rng).unwrap();
+        let d = Data::new(&src, &dst, 0.5, &mut rng).unwrap().unwrap();
         let h = [1.0, 0.01, 0.0, 0.0, 1.0, 0.02, 0.05, 0.0, 1.0];
         for k in 0..d.n {
             assert_eq!(d.agrees(&h, k, d.t2), d.residual2(&h, k) <= d.t2, "{k}");
         }
         let (count, cost) = d.msac(&h);
-        assert_eq!(count, d.inliers(&h, d.t2).len());
+        assert_eq!(count, d.inliers(&h, d.t2).unwrap().len());
         assert!(cost <= d.n as f64 * d.t2);
     }
 }

@@ -15,6 +15,9 @@
 //! among such crowds), the block widens. Linear time: at 5,000 points it costs about as much
 //! as 100 minimal samples.
 
+use crate::alloc;
+use crate::error::Result;
+
 /// Points per grid cell, on average.
 const POINTS_PER_CELL: f64 = 2.0;
 /// Cells across a grid at most (memory stays O(n) for any spread of points).
@@ -44,7 +47,7 @@ struct Grid {
 
 impl Grid {
     /// `salt` shuffles the points within each cell (see `neighbourhood_scores`).
-    fn new(points: &[[f64; 2]], salt: u32) -> Self {
+    fn new(points: &[[f64; 2]], salt: u32) -> Result<Self> {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in points {
             for d in 0..2 {
@@ -62,19 +65,20 @@ impl Grid {
             // Scaled to the cell count, so a degenerate (flat) extent maps to cell 0.
             (((v - lo) / extent * cells as f64) as usize).min(cells - 1) as u32
         };
-        let cell: Vec<(u32, u32)> = points
-            .iter()
-            .map(|p| (index(p[0], lo[0], w, cols), index(p[1], lo[1], h, rows)))
-            .collect();
-        let mut start = vec![0u32; cols * rows + 1];
+        let cell = alloc::collect(
+            points
+                .iter()
+                .map(|p| (index(p[0], lo[0], w, cols), index(p[1], lo[1], h, rows))),
+        )?;
+        let mut start = alloc::filled(0u32, cols * rows + 1)?;
         for &(c, r) in &cell {
             start[r as usize * cols + c as usize + 1] += 1;
         }
         for i in 1..start.len() {
             start[i] += start[i - 1];
         }
-        let mut fill = start.clone();
-        let mut order = vec![0u32; points.len()];
+        let mut fill = alloc::collect(start.iter().copied())?;
+        let mut order = alloc::filled(0u32, points.len())?;
         for (i, &(c, r)) in cell.iter().enumerate() {
             let k = r as usize * cols + c as usize;
             order[fill[k] as usize] = i as u32;
@@ -84,13 +88,13 @@ impl Grid {
             order[cell[0] as usize..cell[1] as usize]
                 .sort_unstable_by_key(|&i| i.wrapping_mul(salt) ^ (i >> 7));
         }
-        Grid {
+        Ok(Grid {
             cols,
             rows,
             cell,
             start,
             order,
-        }
+        })
     }
 
     /// Calls `f` with the points in the cells within `reach` of point i's cell (3 x 3 for
@@ -155,14 +159,14 @@ fn neighbours(
 
 /// Each correspondence's neighbourhood consistency: how many of its source neighbours are
 /// among its destination neighbours too.
-pub fn neighbourhood_scores(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Vec<u32> {
+pub fn neighbourhood_scores(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Result<Vec<u32>> {
     // Crowded blocks are cut at MAX_NEIGHBOURS in cell order; the two grids order their cells
     // differently, so that the two cuts are independent samples of a crowd rather than the
     // same points (which would make any crowd look consistent).
-    let (gs, gd) = (Grid::new(src, 0x9E37_79B1), Grid::new(dst, 0x85EB_CA77));
-    let mut scores = vec![0u32; src.len()];
+    let (gs, gd) = (Grid::new(src, 0x9E37_79B1)?, Grid::new(dst, 0x85EB_CA77)?);
+    let mut scores = alloc::filled(0u32, src.len())?;
     // stamp[j] == i + 1: j is a source neighbour of i (a set without clearing or sorting).
-    let mut stamp = vec![0u32; src.len()];
+    let mut stamp = alloc::filled(0u32, src.len())?;
     let (mut near, mut a, mut b) = (Vec::new(), Vec::new(), Vec::new());
     // Source-cell order: consecutive points share most of their neighbours, which stay in
     // cache.
@@ -179,27 +183,27 @@ pub fn neighbourhood_scores(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Vec<u32> {
             .map(|&j| u32::from(stamp[j as usize] == mark))
             .sum();
     }
-    scores
+    Ok(scores)
 }
 
 /// The correspondences by descending score, ties by ascending index (a counting sort: the
 /// scores are small integers).
-pub fn ranking(scores: &[u32]) -> Vec<u32> {
+pub fn ranking(scores: &[u32]) -> Result<Vec<u32>> {
     let top = scores.iter().copied().max().unwrap_or(0) as usize;
-    let mut start = vec![0u32; top + 2];
+    let mut start = alloc::filled(0u32, top + 2)?;
     for &s in scores {
         start[top - s as usize + 1] += 1;
     }
     for i in 1..start.len() {
         start[i] += start[i - 1];
     }
-    let mut rank = vec![0u32; scores.len()];
+    let mut rank = alloc::filled(0u32, scores.len())?;
     for (i, &s) in scores.iter().enumerate() {
         let slot = &mut start[top - s as usize];
         rank[*slot as usize] = i as u32;
         *slot += 1;
     }
-    rank
+    Ok(rank)
 }
 
 #[cfg(test)]
@@ -213,7 +217,7 @@ mod tests {
         let pts: Vec<[f64; 2]> = (0..400)
             .map(|_| [rng.unit() * 50.0, rng.unit() * 30.0])
             .collect();
-        let g = Grid::new(&pts, 0x9E37_79B1);
+        let g = Grid::new(&pts, 0x9E37_79B1).unwrap();
         for i in [0, 17, 399] {
             let mut got = Vec::new();
             g.for_block(i, 1, usize::MAX, |j| got.push(j));
@@ -243,7 +247,7 @@ mod tests {
         for d in dst.iter_mut().skip(n / 10) {
             *d = [rng.unit() * 3.0 - 0.1, rng.unit() * 2.5 - 0.3];
         }
-        let s = neighbourhood_scores(&src, &dst);
+        let s = neighbourhood_scores(&src, &dst).unwrap();
         let mean = |r: std::ops::Range<usize>| {
             s[r.clone()].iter().map(|&v| f64::from(v)).sum::<f64>() / r.len() as f64
         };
@@ -253,7 +257,7 @@ mod tests {
             "inliers {inl}, outliers {out}"
         );
         // The top of the ranking is mostly inliers.
-        let rank = ranking(&s);
+        let rank = ranking(&s).unwrap();
         let top = rank[..200]
             .iter()
             .filter(|&&i| (i as usize) < n / 10)
@@ -263,8 +267,8 @@ mod tests {
 
     #[test]
     fn ranking_is_by_descending_score_then_index() {
-        assert_eq!(ranking(&[1, 3, 0, 3, 1]), [1, 3, 0, 4, 2]);
-        assert_eq!(ranking(&[]), Vec::<u32>::new());
+        assert_eq!(ranking(&[1, 3, 0, 3, 1]).unwrap(), [1, 3, 0, 4, 2]);
+        assert_eq!(ranking(&[]).unwrap(), Vec::<u32>::new());
     }
 
     #[test]
@@ -294,7 +298,7 @@ mod tests {
                 ]);
             }
         }
-        let rank = ranking(&neighbourhood_scores(&src, &dst));
+        let rank = ranking(&neighbourhood_scores(&src, &dst).unwrap()).unwrap();
         let top = rank[..100]
             .iter()
             .filter(|&&i| (i as usize) < n / 10)
@@ -306,7 +310,7 @@ mod tests {
     fn degenerate_sets_do_not_panic() {
         let same = vec![[1.0, 2.0]; 50];
         let line: Vec<[f64; 2]> = (0..50).map(|i| [i as f64, 0.0]).collect();
-        assert_eq!(neighbourhood_scores(&same, &line).len(), 50);
-        assert_eq!(neighbourhood_scores(&line, &same).len(), 50);
+        assert_eq!(neighbourhood_scores(&same, &line).unwrap().len(), 50);
+        assert_eq!(neighbourhood_scores(&line, &same).unwrap().len(), 50);
     }
 }

@@ -7,6 +7,7 @@
 
 use nalgebra::Matrix3;
 
+use crate::error::Result;
 use crate::estimate::{estimate, Solver};
 use crate::Point;
 
@@ -67,17 +68,17 @@ pub fn optimize(
     h: &[f64; 9],
     inliers: usize,
     cost: f64,
-) -> Option<([f64; 9], usize, f64)> {
+) -> Result<Option<([f64; 9], usize, f64)>> {
     let weak = (inliers as f64) < WEAK_SUPPORT * data.n as f64 || inliers < WEAK_COUNT;
-    let polished = refits(data, h, cost, &POLISH);
+    let polished = refits(data, h, cost, &POLISH)?;
     if !weak {
-        return polished;
+        return Ok(polished);
     }
-    let grown = refits(data, h, cost, &GROW);
-    match (grown, polished) {
+    let grown = refits(data, h, cost, &GROW)?;
+    Ok(match (grown, polished) {
         (Some(g), Some(p)) => Some(if p.2 < g.2 { p } else { g }),
         (g, p) => g.or(p),
-    }
+    })
 }
 
 /// Least-squares refits at the thresholds of `schedule` (multiples of the inlier threshold),
@@ -88,14 +89,14 @@ fn refits(
     h: &[f64; 9],
     cost: f64,
     schedule: &[f64],
-) -> Option<([f64; 9], usize, f64)> {
+) -> Result<Option<([f64; 9], usize, f64)>> {
     let mut best: Option<([f64; 9], usize, f64)> = None;
     let mut best_cost = cost;
     let mut current = *h;
     let mut last: Vec<u32> = Vec::new();
     let steps = schedule.iter().chain(std::iter::repeat_n(&1.0, MAX_SETTLE));
     for (step, &m) in steps.enumerate() {
-        let idx = data.inliers(&current, data.t2 * m * m);
+        let idx = data.inliers(&current, data.t2 * m * m)?;
         if idx.len() < MIN_POINTS || (step >= schedule.len() && idx == last) {
             break;
         }
@@ -112,5 +113,5 @@ fn refits(
             break; // at the final threshold and no better: settled
         }
     }
-    best
+    Ok(best)
 }

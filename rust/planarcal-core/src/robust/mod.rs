@@ -30,6 +30,7 @@ use std::sync::mpsc::RecvTimeoutError;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
+use crate::alloc;
 use crate::correspondences::Correspondences;
 use crate::error::{HomographyError, Result};
 use crate::estimate::{estimate, refine_homography, Solver};
@@ -131,17 +132,17 @@ pub struct RobustResult {
 }
 
 impl RobustResult {
-    fn failure(n: usize, iterations: usize, threshold: f64, lo_runs: usize) -> Self {
-        RobustResult {
+    fn failure(n: usize, iterations: usize, threshold: f64, lo_runs: usize) -> Result<Self> {
+        Ok(RobustResult {
             h: None,
-            inliers: vec![false; n],
+            inliers: alloc::filled(false, n)?,
             n_inliers: 0,
             iterations,
             stop: StopReason::NoConsensus,
             rms_inlier_error: f64::NAN,
             threshold,
             lo_runs,
-        }
+        })
     }
 }
 
@@ -274,16 +275,16 @@ pub fn estimate_robust_interruptible(
     Correspondences::new(src, dst)?;
     check_options(options, n)?;
     let mut rng = Pcg32::new(options.seed, 0);
-    let Some(data) = Data::new(src, dst, options.threshold, &mut rng) else {
+    let Some(data) = Data::new(src, dst, options.threshold, &mut rng)? else {
         // Unreachable after the general-position check: every point the same point.
-        return Ok(RobustResult::failure(n, 0, options.threshold, 0));
+        return RobustResult::failure(n, 0, options.threshold, 0);
     };
     let search = match options.method {
         Method::Msac => msac_search(&data, options, &mut rng, stop)?,
         Method::Lmeds => lmeds_search(&data, options, &mut rng, stop)?,
     };
     let threshold = (options.method == Method::Msac).then_some(options.threshold);
-    Ok(finish(&data, src, dst, search, threshold))
+    finish(&data, src, dst, search, threshold)
 }
 
 /// Estimates many independent problems at once, in parallel (each problem on one thread).
@@ -387,15 +388,15 @@ fn score_batch<T: Send>(
 }
 
 /// A ranking of the correspondences by descending score (ties by index).
-fn ranking(scores: &[f64]) -> Vec<u32> {
-    let mut r: Vec<u32> = (0..scores.len() as u32).collect();
+fn ranking(scores: &[f64]) -> Result<Vec<u32>> {
+    let mut r = alloc::collect(0..scores.len() as u32)?;
     // Unstable is deterministic here: the order is total (ties broken by index).
     r.sort_unstable_by(|&a, &b| {
         scores[b as usize]
             .total_cmp(&scores[a as usize])
             .then(a.cmp(&b))
     });
-    r
+    Ok(r)
 }
 
 /// Sampling and stopping: uniform with RANSAC's rule, or progressive over a ranking with
@@ -428,10 +429,10 @@ fn msac_search(
     // Caller-given scores: the stopping rule may use no less than the better half of them,
     // since nothing says how well they rank (a ranking that puts a wrong structure first
     // would otherwise stop the search on it).
-    let mut progressive = o
-        .scores
-        .as_deref()
-        .map(|s| Progressive::new(ranking(s), o.max_iters, data.n / 2));
+    let mut progressive = match o.scores.as_deref() {
+        Some(s) => Some(Progressive::new(ranking(s)?, o.max_iters, data.n / 2)),
+        None => None,
+    };
     // Start by letting through any model with more support than chance: a model from three
     // inliers and one outlier agrees with only a few points, and local optimisation grows it
     // into the true model. The test sharpens as soon as a best model exists.
@@ -446,7 +447,7 @@ fn msac_search(
     let mut lo_runs = 0;
     let mut guide_checked = progressive.is_some() || data.n < GUIDE_MIN_POINTS;
     let mut samples = Vec::with_capacity(BATCH);
-    let mut is_inlier = vec![false; data.n];
+    let mut is_inlier = alloc::filled(false, data.n)?;
     let mut stale = false;
     let left = |draws: usize, k_max: f64, p: &Option<Progressive>| {
         let uniform = k_max - draws as f64;
@@ -463,9 +464,9 @@ fn msac_search(
         if !guide_checked && draws >= PROBE {
             guide_checked = true;
             if best.is_none_or(|b| (b.inliers as f64) < GUIDE_BELOW * data.n as f64) {
-                let scores = guided::neighbourhood_scores(&data.src, &data.dst);
+                let scores = guided::neighbourhood_scores(&data.src, &data.dst)?;
                 let consistent = scores.iter().filter(|&&s| s > 0).count();
-                let rank = guided::ranking(&scores);
+                let rank = guided::ranking(&scores)?;
                 let left = o.max_iters - iterations;
                 progressive = Some(Progressive::new(rank, left, consistent));
                 stale = best.is_some();
@@ -477,7 +478,7 @@ fn msac_search(
             stale = false;
             if let Some(b) = best {
                 is_inlier.fill(false);
-                for i in data.inliers(&b.h, data.t2) {
+                for i in data.inliers(&b.h, data.t2)? {
                     is_inlier[i as usize] = true;
                 }
                 if let Some(p) = progressive.as_mut() {
@@ -558,7 +559,7 @@ fn msac_search(
                     if inliers >= MIN_LO_SUPPORT {
                         lo_runs += 1;
                         if let Some((h, inliers, cost)) =
-                            local_opt::optimize(data, &h, inliers, cost)
+                            local_opt::optimize(data, &h, inliers, cost)?
                         {
                             model = Model {
                                 h,
@@ -634,11 +635,16 @@ fn lmeds_search(
         }
         iterations += batch;
         let medians = score_batch(data, &samples, o.parallel, |s| {
-            let h = hypothesis(data, s)?;
-            let median = median_residual2(data, &h);
-            median.is_finite().then_some((h, median))
+            let Some(h) = hypothesis(data, s) else {
+                return Ok(None);
+            };
+            let median = median_residual2(data, &h)?;
+            Ok(median.is_finite().then_some((h, median)))
         });
-        for (h, median) in medians.into_iter().flatten() {
+        for scored in medians {
+            let Some((h, median)) = scored? else {
+                continue;
+            };
             if best.is_none_or(|b| median < b.cost) {
                 best = Some(Model {
                     h,
@@ -658,11 +664,11 @@ fn lmeds_search(
             break;
         }
         lo_runs += 1;
-        let half = data.inliers(&b.h, b.cost);
+        let half = data.inliers(&b.h, b.cost)?;
         let Some(h) = local_opt::fit(data, &half) else {
             break;
         };
-        let median = median_residual2(data, &h);
+        let median = median_residual2(data, &h)?;
         if !(median < b.cost) {
             break;
         }
@@ -680,10 +686,13 @@ fn lmeds_search(
     });
     // Exact data has a zero median: keep a threshold at the rounding of the coordinates.
     let t2 = t2.max(1e-24);
-    let best = best.map(|b| Model {
-        inliers: data.inliers(&b.h, t2).len(),
-        ..b
-    });
+    let best = match best {
+        Some(b) => Some(Model {
+            inliers: data.inliers(&b.h, t2)?.len(),
+            ..b
+        }),
+        None => None,
+    };
     Ok(Search {
         best,
         iterations,
@@ -695,11 +704,11 @@ fn lmeds_search(
 }
 
 /// The median squared residual of h over all points (LMedS's cost).
-fn median_residual2(data: &Data, h: &[f64; 9]) -> f64 {
-    let mut r = Vec::with_capacity(data.n);
-    data.residuals2_into(h, &mut r);
+fn median_residual2(data: &Data, h: &[f64; 9]) -> Result<f64> {
+    let mut r = Vec::new();
+    data.residuals2_into(h, &mut r)?;
     let mid = r.len() / 2;
-    *r.select_nth_unstable_by(mid, f64::total_cmp).1
+    Ok(*r.select_nth_unstable_by(mid, f64::total_cmp).1)
 }
 
 /// The chance that a point falls within the threshold of a wrong model's prediction: the
@@ -711,19 +720,16 @@ fn geometric_delta(data: &Data, t2: f64) -> f64 {
 }
 
 /// Squared transfer errors under an oriented H (infinite behind the horizon).
-fn squared_errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Vec<f64> {
-    src.iter()
-        .zip(dst)
-        .map(|(s, d)| {
-            let w = h[(2, 0)] * s[0] + h[(2, 1)] * s[1] + h[(2, 2)];
-            if !(w > 0.0) {
-                return f64::INFINITY;
-            }
-            let x = (h[(0, 0)] * s[0] + h[(0, 1)] * s[1] + h[(0, 2)]) / w;
-            let y = (h[(1, 0)] * s[0] + h[(1, 1)] * s[1] + h[(1, 2)]) / w;
-            (x - d[0]) * (x - d[0]) + (y - d[1]) * (y - d[1])
-        })
-        .collect()
+fn squared_errors(h: &Matrix3<f64>, src: &[Point], dst: &[Point]) -> Result<Vec<f64>> {
+    alloc::collect(src.iter().zip(dst).map(|(s, d)| {
+        let w = h[(2, 0)] * s[0] + h[(2, 1)] * s[1] + h[(2, 2)];
+        if !(w > 0.0) {
+            return f64::INFINITY;
+        }
+        let x = (h[(0, 0)] * s[0] + h[(0, 1)] * s[1] + h[(0, 2)]) / w;
+        let y = (h[(1, 0)] * s[0] + h[(1, 1)] * s[1] + h[(1, 2)]) / w;
+        (x - d[0]) * (x - d[0]) + (y - d[1]) * (y - d[1])
+    }))
 }
 
 /// Least-squares refits to `idx` and then to the points within the threshold of each fit,
@@ -737,11 +743,11 @@ fn settle(
     mut start: Matrix3<f64>,
     t2: f64,
     from_dlt: bool,
-) -> Option<(Matrix3<f64>, Vec<f64>)> {
+) -> Result<Option<(Matrix3<f64>, Vec<f64>)>> {
     let mut fitted = None;
     for round in 0..FINAL_ROUNDS {
-        let s: Vec<Point> = idx.iter().map(|&i| src[i as usize]).collect();
-        let d: Vec<Point> = idx.iter().map(|&i| dst[i as usize]).collect();
+        let s = alloc::collect(idx.iter().map(|&i| src[i as usize]))?;
+        let d = alloc::collect(idx.iter().map(|&i| dst[i as usize]))?;
         let dlt = || estimate(&s, &d, Solver::NormalizedDlt, true);
         let refine = || refine_homography(&s, &d, &start);
         let fit = if round == 0 && from_dlt {
@@ -749,21 +755,21 @@ fn settle(
         } else {
             refine().or_else(|_| dlt())
         };
-        let Ok(fit) = fit else {
-            break;
+        let fit = match fit {
+            Ok(fit) => fit,
+            Err(e @ HomographyError::OutOfMemory { .. }) => return Err(e),
+            Err(_) => break,
         };
         start = fit.h;
-        let e2 = squared_errors(&fit.h, src, dst);
-        let next: Vec<u32> = (0..src.len() as u32)
-            .filter(|&i| e2[i as usize] <= t2)
-            .collect();
+        let e2 = squared_errors(&fit.h, src, dst)?;
+        let next = alloc::collect((0..src.len() as u32).filter(|&i| e2[i as usize] <= t2))?;
         fitted = Some((fit.h, e2));
         if next == idx {
             break;
         }
         idx = next;
     }
-    fitted
+    Ok(fitted)
 }
 
 /// The final model: fitted to the search's inliers in the caller's units (normalised DLT,
@@ -778,7 +784,7 @@ fn finish(
     dst: &[Point],
     search: Search,
     threshold: Option<f64>,
-) -> RobustResult {
+) -> Result<RobustResult> {
     let n = data.n;
     let threshold = threshold.unwrap_or_else(|| search.t2.sqrt() / data.dst_norm.scale);
     let Some(best) = search.best else {
@@ -793,9 +799,9 @@ fn finish(
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     }
     let t2 = threshold * threshold;
-    let mut idx = data.inliers(&best.h, search.t2);
+    let mut idx = data.inliers(&best.h, search.t2)?;
     idx.sort_unstable();
-    let mut fitted = settle(src, dst, idx, data.denormalize(&best.h), t2, !best.fitted);
+    let mut fitted = settle(src, dst, idx, data.denormalize(&best.h), t2, !best.fitted)?;
     for widen in WIDEN {
         let Some((h, e2)) = &fitted else {
             break;
@@ -804,15 +810,13 @@ fn finish(
         if best.inliers >= WIDEN_BELOW {
             break;
         }
-        let wide: Vec<u32> = (0..n as u32)
-            .filter(|&i| e2[i as usize] <= widen * widen * t2)
-            .collect();
+        let wide = alloc::collect((0..n as u32).filter(|&i| e2[i as usize] <= widen * widen * t2))?;
         // Nothing between the threshold and the wider one: nothing to gain.
         if wide.len() == e2.iter().filter(|&&v| v <= t2).count() {
             continue;
         }
         let cost = |e2: &[f64]| e2.iter().map(|&v| v.min(t2)).sum::<f64>();
-        if let Some(other) = settle(src, dst, wide, *h, t2, false) {
+        if let Some(other) = settle(src, dst, wide, *h, t2, false)? {
             if cost(&other.1) < cost(e2) {
                 fitted = Some(other);
             }
@@ -821,7 +825,7 @@ fn finish(
     let Some((h, e2)) = fitted else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     };
-    let inliers: Vec<bool> = e2.iter().map(|&v| v <= t2).collect();
+    let inliers = alloc::collect(e2.iter().map(|&v| v <= t2))?;
     let n_inliers = inliers.iter().filter(|&&b| b).count();
     if n_inliers < 4 {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
@@ -832,7 +836,7 @@ fn finish(
         .filter(|(_, &b)| b)
         .map(|(v, _)| v)
         .sum();
-    RobustResult {
+    Ok(RobustResult {
         h: Some(h),
         inliers,
         n_inliers,
@@ -841,7 +845,7 @@ fn finish(
         rms_inlier_error: (sum_sq / n_inliers as f64).sqrt(),
         threshold,
         lo_runs: search.lo_runs,
-    }
+    })
 }
 
 #[cfg(test)]

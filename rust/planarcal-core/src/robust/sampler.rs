@@ -56,13 +56,13 @@ impl Pcg32 {
     }
 
     /// A Fisher-Yates shuffle of `0..n`.
-    pub fn permutation(&mut self, n: usize) -> Vec<u32> {
-        let mut p: Vec<u32> = (0..n as u32).collect();
+    pub fn permutation(&mut self, n: usize) -> crate::Result<Vec<u32>> {
+        let mut p = crate::alloc::collect(0..n as u32)?;
         for i in (1..n).rev() {
             let j = self.below(i as u32 + 1) as usize;
             p.swap(i, j);
         }
-        p
+        Ok(p)
     }
 }
 
@@ -201,7 +201,7 @@ mod tests {
             t.sort_unstable();
             assert!(t.windows(2).all(|w| w[0] != w[1]) && t[3] < 5);
         }
-        let mut p = g.permutation(100);
+        let mut p = g.permutation(100).unwrap();
         p.sort_unstable();
         assert_eq!(p, (0..100).collect::<Vec<u32>>());
     }
