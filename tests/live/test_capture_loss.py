@@ -28,6 +28,7 @@ import pytest
 from test_tracker import _run as run_command
 from test_tracker import render_moving
 
+import planarcal.live.tracker as tracker_module
 from planarcal import synth
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
@@ -417,3 +418,50 @@ def test_a_run_that_delivered_nothing_exits_1(calibration_file: Path) -> None:
     figures = summary(text)
     assert figures["frames"] == 0 and figures["camera_down_s"] > 0
     assert "error: no frame was delivered: 0 frames read; the camera was down" in text
+
+
+def free_port() -> int:
+    """A loopback port that nothing listens on."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port: int = probe.getsockname()[1]
+    return port
+
+
+def reopen_waits(log: str) -> list[float]:
+    """The waits announced by 'reopening in X s' warnings, in order."""
+    return [float(x) for x in re.findall(r"reopening in ([0-9.]+) s", log)]
+
+
+def test_the_back_off_doubles_up_to_its_maximum_and_max_reconnect_gives_up(
+    calibration: Calibration, caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tracker_module, "REOPEN_MAX_S", 0.4)
+    t = Tracker(calibration, f"http://127.0.0.1:{free_port()}/video", max_reconnect_s=2.0)
+    with (
+        caplog.at_level(logging.WARNING, logger="planarcal.live.tracker"),
+        pytest.raises(CameraError, match="gave up reopening") as gave_up,
+    ):
+        list(t)
+    # Each attempt is announced while the wait grows; at its maximum they go on unannounced
+    # (about once a minute): 0.1 + 0.2 + 0.4 + 0.4 + 0.4 + ... s, five or more in 2 s.
+    assert reopen_waits(caplog.text) == [0.2, 0.4]
+    attempts = int(re.findall(r"\((\d+) attempts\)", str(gave_up.value))[0])
+    assert attempts >= 5, gave_up.value
+    assert t.stats.frames == 0 and t.stats.camera_down_s >= 2.0
+
+
+def test_a_stream_that_fails_again_at_once_is_reopened_ever_more_slowly(
+    calibration: Calibration, scenes: list[np.ndarray], caplog: pytest.LogCaptureFixture
+) -> None:
+    # Each connection gives one frame and closes: without a growing wait this would be a
+    # tight open-fail cycle.
+    with (
+        stream_server(scenes, per_session=1, sessions=5) as server,
+        caplog.at_level(logging.WARNING, logger="planarcal.live.tracker"),
+        Tracker(calibration, server.url, max_frames=5) as t,
+    ):
+        results = list(t)
+    assert len(results) + t.stats.frames_dropped == 5
+    assert (t.stats.camera_lost, t.stats.camera_reconnects) == (4, 4)
+    assert reopen_waits(caplog.text) == [0.1, 0.2, 0.4, 0.8]

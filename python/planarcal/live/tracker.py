@@ -525,6 +525,9 @@ class Tracker:
                 self._file_ended(camera)
                 self._put(_End())
                 return None
+            if camera.closed and not self._live:  # a file that hung: not reopened
+                self._put(_End(e))
+                return None
             if camera.closed:  # stopped delivering (and released): reopen with back-off
                 self._lost(e)
                 return index
@@ -579,9 +582,11 @@ class Tracker:
         self.stats.camera_lost += 1
         self._down_since, self._down_reason = now, str(error)
         # A camera that stayed up a while starts the back-off afresh; one that fails again
-        # soon after it was reopened keeps the longer wait (no tight open-fail cycle).
+        # soon after it was reopened waits longer each time (no tight open-fail cycle).
         if now - self._opened_at >= REOPEN_MAX_S:
             self._delay = REOPEN_FIRST_S
+        elif self.stats.camera_lost > 1:
+            self._delay = min(2 * self._delay, REOPEN_MAX_S)
         _log.warning("camera lost: %s; reopening in %.1f s (attempt 1)", error, self._delay)
 
     def _reopen(self) -> Camera | None:
@@ -623,12 +628,16 @@ class Tracker:
         waited = time.monotonic() - start
         self._down_reason = str(error)
         if self.max_reconnect_s is not None and waited >= self.max_reconnect_s:
-            why = f"gave up reopening {self._spec!r} after {waited:.1f} s: {error}"
+            why = (
+                f"gave up reopening {self._spec!r} after {waited:.1f} s ({attempt} attempts): "
+                f"{error}"
+            )
             self._put(_End(CameraError(why)))
             return False
+        growing = self._delay < REOPEN_MAX_S
         self._delay = min(2 * self._delay, REOPEN_MAX_S)
-        # Each attempt while the wait grows, then once a minute.
-        if self._delay < REOPEN_MAX_S or attempt % round(60 / REOPEN_MAX_S) == 0:
+        # Each attempt while the wait grows, then about once a minute.
+        if growing or attempt % max(1, round(60 / REOPEN_MAX_S)) == 0:
             _log.warning(
                 "camera down for %.1f s: %s; reopening in %.1f s (attempt %d)",
                 waited,
