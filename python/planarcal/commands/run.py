@@ -24,8 +24,9 @@ DESCRIPTION = (
     "their angles, keep their IDs from frame to frame, and write one line per frame (JSON, "
     "CSV or a template) to the output, or serve it to controllers (tcp-listen://, on request "
     "with --trigger). Survives bad frames and a camera that drops out; Ctrl-C or SIGTERM end "
-    "it cleanly with a summary on stderr. Exits 1 if every frame failed, and at once if the "
-    "frames are not of the size the calibration was made on."
+    "it cleanly with a summary on stderr. Exits 1 if no frame was delivered (every frame "
+    "failed, or the camera never came), and at once if the frames are not of the size the "
+    "calibration was made on."
 )
 
 
@@ -34,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--source",
         required=True,
-        help="camera index (0), video file, image folder or stream URL",
+        help="camera index (0), video file (a path or file://), image folder or stream URL",
     )
     p.add_argument("--calibration", required=True, type=Path, help="file from 'calibrate'")
     run.add_output_arguments(p)

@@ -554,9 +554,10 @@ class Tracker:
         skipped = new_u + new_w - (1 if raised else 0)
         if skipped > 0:
             self.stats.read += skipped
+            which = f"frames {index} to {index + skipped - 1}" if skipped > 1 else f"frame {index}"
             error = CameraError(
-                f"{camera.label}: {skipped} frames could not be decoded (frames {index} to "
-                f"{index + skipped - 1}); skipped"
+                f"{camera.label}: {skipped} frame{'s' if skipped > 1 else ''} could not be "
+                f"decoded ({which}); skipped"
             )
             self._record_fault(error)
             _log.warning("%s (%d undecodable so far)", error, self.stats.frames_undecodable)
