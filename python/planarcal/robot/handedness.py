@@ -50,46 +50,49 @@ def handedness_of(mirrored: bool) -> Handedness:
     return "right" if mirrored else "left"
 
 
-def across_line_mm(plane_mm: F64) -> float:
+def across_line_mm(points_mm: F64) -> float:
     """sqrt(sum d_i^2) (mm): the root-sum-square distance of the points from their main line
     (the smaller singular value of the centred points); 0 on a line."""
-    if len(plane_mm) < 2:
+    if len(points_mm) < 2:
         return 0.0
-    s = np.linalg.svd(plane_mm - plane_mm.mean(axis=0), compute_uv=False)
+    s = np.linalg.svd(points_mm - points_mm.mean(axis=0), compute_uv=False)
     return float(s[-1])
 
 
-def line_ends(plane_mm: F64) -> tuple[int, int]:
+def line_ends(points_mm: F64) -> tuple[int, int]:
     """The indices of the two points farthest apart along the points' main line."""
-    centred = plane_mm - plane_mm.mean(axis=0)
+    centred = points_mm - points_mm.mean(axis=0)
     _, _, vt = np.linalg.svd(centred, full_matrices=False)
     along = centred @ vt[0]
     first, last = int(np.argmin(along)), int(np.argmax(along))
     return (first, last) if first < last else (last, first)
 
 
-def hand_margin(plane_mm: F64, sigma_mm: float) -> float:
+def hand_margin(mapped_mm: F64, sigma_mm: float) -> float:
     """z = sqrt(sum d_i^2) / sigma: how many standard deviations of the touch noise keep the
-    data's choice of hand from flipping."""
-    return across_line_mm(plane_mm) / sigma_mm if sigma_mm > 0 else float("inf")
+    data's choice of hand from flipping (``mapped_mm``: the touches' board points mapped by the
+    fit, in the noise's robot mm)."""
+    return across_line_mm(mapped_mm) / sigma_mm if sigma_mm > 0 else float("inf")
 
 
 def check_hand_determined(
-    plane_mm: F64,
+    mapped_mm: F64,
     sigma_mm: float,
     model: Model,
     hand_given: bool,
     name: Callable[[int], str],
 ) -> None:
-    """RegistrationError when the points (board mm) leave the hand free under the touch noise
+    """RegistrationError when the touches leave the hand free under the touch noise
     ``sigma_mm`` (per coordinate) and it was not given (or the model is affine, whose hand is
-    its points'): naming the two touches at the ends of their line (``name`` of an index)."""
+    its points'): naming the two touches at the ends of their line (``name`` of an index).
+    ``mapped_mm``: their board points mapped by the fit, in the robot's mm like the noise (a
+    similarity's scale or an affine's stretch changes their distances from the line)."""
     if hand_given and model != "affine":
         return
-    rss = across_line_mm(plane_mm)
+    rss = across_line_mm(mapped_mm)
     if rss >= MIN_HAND_Z * sigma_mm:
         return
-    first, last = line_ends(plane_mm)
+    first, last = line_ends(mapped_mm)
     fix = (
         "or give the hand (handedness='right' for a right-handed robot frame with z up, "
         "'left' otherwise; --handedness right|left or --no-mirror)"

@@ -555,7 +555,11 @@ class _Fitted:
         index = np.flatnonzero(trusted)
         name = _namer(dots)
         check_hand_determined(
-            plane[trusted], sigma, self.model, mirrored is not None, lambda k: name(int(index[k]))
+            apply(self.matrix, plane[trusted]),
+            sigma,
+            self.model,
+            mirrored is not None,
+            lambda k: name(int(index[k])),
         )
         if self.model == "affine" and mirrored is not None and self.reflected != mirrored:
             raise RegistrationError(
@@ -573,7 +577,7 @@ class _Fitted:
         other_rms = float(np.sqrt(np.mean(np.sum(other_xy**2, axis=1))))
         given_rms = float(np.sqrt(np.mean(self.residuals[self.used] ** 2)))
         sigma = noise_sigma_mm(other_xy, self.model)
-        if other_rms >= given_rms or hand_margin(p, sigma) < MIN_HAND_Z:
+        if other_rms >= given_rms or hand_margin(apply(other, p), sigma) < MIN_HAND_Z:
             return ()
         return (
             f"the touches show the other hand: a map that {_mirrors(not mirrored)} fits them "
