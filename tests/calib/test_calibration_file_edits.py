@@ -302,8 +302,10 @@ def test_a_calibration_that_could_not_be_loaded_is_not_saved(tmp_path: Path) -> 
     with pytest.raises(CalibrationFileError, match=r"world point 3 .* is not a dot of the board"):
         cal.save(tmp_path / "never.json")
     assert not (tmp_path / "never.json").exists()
-    with pytest.raises(ValueError, match=r"image point 3 .* outside the 300 x 200 px image"):
-        Calibration(WORLD, IMAGE, image_size=(300, 200), lens="none")
+    cal = Calibration(WORLD, IMAGE, image_size=(300, 200), lens="none")
+    with pytest.raises(CalibrationFileError, match=r"image point 4 .* outside the 300 x 200 px"):
+        cal.save(tmp_path / "never.json")
+    assert not (tmp_path / "never.json").exists()
 
 
 # -- 5. every leaf of a real file, edited ----------------------------------------------------

@@ -201,10 +201,6 @@ class Calibration:
                     f"the intrinsics are for {intrinsics.image_size[0]} x "
                     f"{intrinsics.image_size[1]} images, this one is {size[0]} x {size[1]}"
                 )
-        # Pixels beyond the image would be refused on load (edited): refused when made.
-        problem = calibration_file.image_points_problem(image, size)
-        if problem is not None:
-            raise ArgumentError(f"image_points: {problem} (image_size)")
         fit = fit_with_lens(world, image, solver, bool(refine), lens, size, intrinsics)
         fit = calibration_file.fit_as_loaded(fit, world, image, size, intrinsics)
         self._init(world, image, fit, solver, bool(refine), board, size, intrinsics, (1.0, 1.0))

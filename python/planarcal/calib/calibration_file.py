@@ -129,6 +129,10 @@ MAX_ROBOT_MM = 1e9
 thousand km): beyond it a refit or its error bars overflow, and the file could not be saved
 again."""
 
+IMAGE_MARGIN = 0.1
+"""How far beyond the image (a share of its side) an image point may lie: dots detected lie
+inside it; an image size swapped or cut puts a board's points far outside."""
+
 POINT_TOLERANCE_REL = 1e-9
 """How closely a world point must lie on its board dot, relative to the board's extent (the
 points are the dots' positions times world_scale: rounding is some 1e-16)."""
@@ -207,12 +211,14 @@ def calibration_to_dict(cal: Calibration, *, summary: bool = True) -> dict[str, 
     if summary:
         content["summary"] = {k: json_number(v) for k, v in cal.summary().to_dict().items()}
     content["robot_frame"] = None if cal.robot_frame is None else cal.robot_frame.to_dict()
-    if cal.board is not None:
-        # A board that does not describe the points (Calibration(world, image, board=...)
-        # with other points) would be refused on load as edited.
+    # A board that does not describe the points, or points beyond the image (the API takes
+    # both: Calibration(world, image, board=..., image_size=...)), would be refused on load
+    # as edited.
+    problem = image_points_problem(cal.image_points, cal.image_size)
+    if problem is None and cal.board is not None:
         problem = board_points_problem(cal.board, cal.world_points, cal.world_scale)
-        if problem is not None:
-            raise CalibrationFileError(f"the calibration cannot be saved: {problem}")
+    if problem is not None:
+        raise CalibrationFileError(f"the calibration cannot be saved: {problem}")
     bad = _first_non_finite(content)
     if bad is not None:
         raise CalibrationFileError(
@@ -404,11 +410,13 @@ def board_points_problem(
 def image_points_problem(image: F64, size: tuple[int, int] | None) -> str | None:
     """What is wrong with image points `image` as pixels of images of `size` (width,
     height), or None: each must lie within the image (pixel centres at whole numbers, so
-    from -0.5 to width - 0.5)."""
+    from -0.5 to width - 0.5), give or take IMAGE_MARGIN of its side (points made by a
+    model rather than detected may stray a little)."""
     if size is None:
         return None
-    limit = np.array([size[0], size[1]], dtype=np.float64) - 0.5
-    outside = np.flatnonzero(~np.all((image >= -0.5) & (image <= limit), axis=1))
+    side = np.array([size[0], size[1]], dtype=np.float64)
+    low, high = -0.5 - IMAGE_MARGIN * side, side - 0.5 + IMAGE_MARGIN * side
+    outside = np.flatnonzero(~np.all((image >= low) & (image <= high), axis=1))
     if not outside.size:
         return None
     k = int(outside[0])
@@ -744,7 +752,8 @@ def _agree(stored: Any, derived: Any, path: str, strict: bool, source: str) -> N
     """CalibrationFileError, naming the entry at `path`, unless the file's value `stored`
     is `derived` (a calibration's own re-derivation of it): the same JSON type, the same
     strings, booleans and nulls, numbers to DERIVED_TOLERANCE_REL (and _ABS); objects with
-    the same fields (`strict`; otherwise those stored are compared, for older versions)."""
+    the same fields (`strict`; otherwise those stored are compared, and texts only for
+    their type, for older versions)."""
     if isinstance(derived, dict):
         if not isinstance(stored, dict):
             raise CalibrationFileError(
@@ -767,6 +776,10 @@ def _agree(stored: Any, derived: Any, path: str, strict: bool, source: str) -> N
             )
         for i, (s, d) in enumerate(zip(stored, derived, strict=True)):
             _agree(s, d, f"{path}[{i}]", strict, source)
+    elif isinstance(derived, str) and not strict:
+        # A text a file of an older version stores (a warning) may be worded otherwise now.
+        if not isinstance(stored, str):
+            raise CalibrationFileError(f"{source}: {path} must be a string, got {_show(stored)}")
     elif isinstance(derived, bool | str) or derived is None:
         if type(stored) is not type(derived) or stored != derived:
             raise CalibrationFileError(
