@@ -20,6 +20,7 @@ optional extra is not installed). The Rust bindings raise the classes below too
     ├── RegistrationError        (ValueError) point pairs that cannot fix the plane-to-robot map
     ├── BoardError, ImageError, BoardNotFoundError (BoardTurnedError), CalibrationFileError,
     │   FrameSizeError, IntrinsicsError, OutputError                          (ValueError)
+    │   └── BoardMismatchError (a BoardError) the image contradicts the board's description
     ├── CameraError              (OSError)
     ├── MissingDependencyError   (ImportError) an optional extra is not installed
     └── StateError               (RuntimeError) a call the object's state does not allow
@@ -40,6 +41,7 @@ __all__ = [
     "ArgumentError",
     "ArgumentTypeError",
     "BoardError",
+    "BoardMismatchError",
     "BoardNotFoundError",
     "BoardTurnedError",
     "CalibrationFileError",
@@ -125,6 +127,12 @@ class RegistrationError(Error, ValueError):
 
 class BoardError(Error, ValueError):
     """A board description that cannot be a circle grid (sizes, counts, a dot too large)."""
+
+
+class BoardMismatchError(BoardError):
+    """The board in the image contradicts its description: its dots, measured on the board
+    through the homography, are not the stated size for the stated pitch (the diameter or
+    the pitch is wrong), or its origin marker is not the stated size for its dots."""
 
 
 class ImageError(Error, ValueError):

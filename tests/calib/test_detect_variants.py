@@ -20,7 +20,7 @@ from conftest import RecordProperty
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.detect import BoardDetection, detect_board
-from planarcal.errors import BoardError, BoardTurnedError
+from planarcal.errors import BoardError, BoardMismatchError, BoardTurnedError
 
 NAMES = tuple(synth.BOARD_VARIANTS)
 
@@ -86,17 +86,20 @@ def test_never_below_opencv(name: str, variants: dict[str, synth.BoardVariant]) 
 
 @pytest.mark.parametrize("factor", [0.5, 1.5])
 @pytest.mark.parametrize("name", ["ratio_0.30", "ratio_0.66", "printed_marks", "light_on_dark"])
-def test_a_diameter_off_by_half_changes_nothing(
+def test_a_diameter_off_by_half_is_refused_and_the_right_one_changes_nothing(
     name: str, factor: float, variants: dict[str, synth.BoardVariant]
 ) -> None:
+    """The diameter is not needed to find the dots, and the centres do not depend on it; but
+    one the image contradicts means the diameter or the pitch is wrong (issue 21)."""
     v = variants[name]
     assert v.board.diameter is not None
+    np.testing.assert_allclose(_detect(v, v.board).image_points, _detect(v).image_points, atol=1e-9)
     try:
         board = dataclasses.replace(v.board, diameter=v.board.diameter * factor)
     except BoardError:
         pytest.skip("that diameter does not fit the pitch")
-    told = _detect(v, board).image_points
-    np.testing.assert_allclose(told, _detect(v).image_points, atol=1e-9)
+    with pytest.raises(BoardMismatchError, match="the diameter or the pitch is wrong"):
+        _detect(v, board)
 
 
 def test_an_origin_dot_as_wide_as_the_pitch_is_recognised_without_a_flag(

@@ -26,9 +26,10 @@ from planarcal.report import drawing
 from planarcal.synth import paper_data
 
 # The per-point table's columns before the lens and uncertainty columns were added: scripts
-# read them by position, so they keep their order.
+# read them by position, so they keep their order. The first is the dot's index (0 the origin
+# dot, as in the touch CSV and the API; it was a 1-based "point" before issue 21).
 OLD_COLUMNS = [
-    "point",
+    "dot",
     "row",
     "col",
     "world_x_mm",
@@ -203,6 +204,19 @@ def test_points_csv_has_the_leave_one_out_columns(cal: Calibration) -> None:
     assert (predicted > 0).all()
 
 
+def test_points_csv_numbers_the_dots_as_the_api_does(cal: Calibration) -> None:
+    rows = list(csv.DictReader(io.StringIO(report.points_csv(cal))))
+    cols = cal.board.cols if cal.board is not None else 0
+    assert [r["dot"] for r in rows] == [str(k) for k in range(len(cal.world_points))]
+    for k in (0, 1, cols, len(rows) - 1):
+        # Dot k is row k // cols, column k % cols, at world_points[k] (the origin for 0).
+        r = rows[k]
+        assert (int(r["row"]), int(r["col"])) == divmod(k, cols)
+        world = (float(r["world_x_mm"]), float(r["world_y_mm"]))
+        assert world == pytest.approx(tuple(cal.world_points[k]), abs=1e-6)
+    assert (float(rows[0]["world_x_mm"]), float(rows[0]["world_y_mm"])) == (0.0, 0.0)
+
+
 # ------------------------------------------------------------------------------------------
 # the figures
 
@@ -369,7 +383,7 @@ ORIGINAL_FIELDS = (
     "dot_diameters_px",
     "residual_rms_px",
 )
-NOT_REFINED = (4, 50)  # 0-based: points 5 and 51
+NOT_REFINED = (4, 50)  # the dots' indices, as every file and text names them
 ENLARGED = (0,)
 RULE = "dot 0 is the corner dot nearest the image's top-left corner"
 
@@ -405,18 +419,17 @@ def _flagged(detection: Any, **extra: Any) -> Any:
 def test_summaries_carry_the_detections_findings(cal: Calibration, detection: Any) -> None:
     flagged = _flagged(detection)
     out = report.summary_json(cal, flagged)["detection"]
-    assert out["n_not_refined"] == 2 and out["not_refined_points"] == [5, 51]
-    assert out["enlarged_points"] == [1]
+    assert out["n_not_refined"] == 2 and out["not_refined_dots"] == [4, 50]
+    assert out["enlarged_dots"] == [0]
     assert out["orientation"] == f"ambiguous: {RULE}" and out["orientation_rule"] == RULE
     assert out["warnings"] == ["the board fills little of the image"]
     json.dumps(out, allow_nan=False)
     text = report.summary_text(cal, flagged)
     assert f"Orientation (which dot is the origin): ambiguous: {RULE}" in text
-    assert (
-        "Centres refined: 138 of 140 dots; not refined (a coarser centre kept): points 5, 51"
-        in (text)
+    assert "Centres refined: 138 of 140 dots; not refined (a coarser centre kept): dots 4, 50" in (
+        text
     )
-    assert "Enlarged dots: point 1" in text
+    assert "Enlarged dots: dot 0" in text
     assert "Warning: the board fills little of the image" in text
 
 
@@ -439,9 +452,9 @@ def test_summaries_without_the_findings_say_nothing_of_them(
 
 def test_points_csv_flags_each_dot(cal: Calibration, detection: Any) -> None:
     rows = list(csv.DictReader(io.StringIO(report.points_csv(cal, _flagged(detection)))))
-    refined = [r["point"] for r in rows if r["refined"] == "0"]
-    enlarged = [r["point"] for r in rows if r["enlarged"] == "1"]
-    assert refined == ["5", "51"] and enlarged == ["1"]
+    refined = [r["dot"] for r in rows if r["refined"] == "0"]
+    enlarged = [r["dot"] for r in rows if r["enlarged"] == "1"]
+    assert refined == ["4", "50"] and enlarged == ["0"]
     assert {r["refined"] for r in rows} == {"0", "1"}
     # Unknown: empty cells, the same header.
     plain = list(csv.DictReader(io.StringIO(report.points_csv(cal, _plain(detection)))))
@@ -467,11 +480,31 @@ def test_the_detection_figure_marks_the_flagged_dots(scene: Any, detection: Any)
     assert not changed(middle)
 
 
+def test_the_detection_figure_labels_each_dot_with_its_index(scene: Any, detection: Any) -> None:
+    """Dot 9 (the last of the first row's first ten) is labelled "9", one digit wide, as the
+    CSV files and the API number it; it was "10"."""
+    drawn = drawing.draw_detection(scene.image, detection)
+    # The labels' green (0, 200, 0), antialiased over the grey image: nothing else near dot 9
+    # is green.
+    bgr = drawn.astype(np.int32)
+    label_green = bgr[:, :, 1] - np.maximum(bgr[:, :, 0], bgr[:, :, 2]) > 60
+    x, y = detection.image_points[9]
+    pitch = detection.pitch_px
+    box = label_green[int(y - 0.6 * pitch) : int(y), int(x) : int(x + 0.9 * pitch)]
+    columns = np.flatnonzero(box.any(axis=0))
+    assert columns.size, "no label beside dot 9"
+    width = int(columns[-1] - columns[0] + 1)
+    scale = 0.35 * max(0.5, max(drawn.shape[:2]) / 1280.0)
+    (one, _), _ = cv2.getTextSize("9", cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    (two, _), _ = cv2.getTextSize("10", cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    assert abs(width - one) < abs(width - two), (width, one, two)
+
+
 def test_write_report_carries_the_findings(
     cal: Calibration, scene: Any, detection: Any, tmp_path: Path
 ) -> None:
     report.write_report(cal, tmp_path, image=scene.image, detection=_flagged(detection))
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["detection"]["not_refined_points"] == [5, 51]
+    assert summary["detection"]["not_refined_dots"] == [4, 50]
     rows = list(csv.DictReader(io.StringIO((tmp_path / "points.csv").read_text())))
-    assert [r["point"] for r in rows if r["refined"] == "0"] == ["5", "51"]
+    assert [r["dot"] for r in rows if r["refined"] == "0"] == ["4", "50"]

@@ -131,6 +131,12 @@ class CalibrationSummary:
     """Mean leave-one-out error in the image, px."""
     predicted_loo_rms_mm: float = float("nan")
     """The RMS leave-one-out error the fit's covariance predicts (compare loo_rms_mm)."""
+    loo_rms_px: float = float("nan")
+    """RMS leave-one-out error in the image, px: unlike the mm figures, which scale with the
+    board's stated pitch (a pitch stated ten times too small reports errors ten times too
+    small), no wrong description of the board can flatter it."""
+    loo_max_px: float = float("nan")
+    """Largest leave-one-out error in the image, px."""
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -787,6 +793,8 @@ class Calibration:
             lens=self.lens_model,
             loo_mean_px=float(loo_px.mean()) if loo_px.size else nan,
             predicted_loo_rms_mm=float(np.sqrt(np.mean(pred**2))) if pred.size else nan,
+            loo_rms_px=float(np.sqrt(np.mean(loo_px**2))) if loo_px.size else nan,
+            loo_max_px=float(loo_px.max()) if loo_px.size else nan,
         )
         # What str(summary) describes; not a field, so no part of to_dict, == or repr.
         object.__setattr__(summary, "_calibration", self)

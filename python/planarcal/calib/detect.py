@@ -45,7 +45,12 @@ from scipy.spatial import cKDTree
 
 from planarcal.calib.blobs import Blobs, find_blobs
 from planarcal.calib.board import CircleGridBoard
-from planarcal.calib.dot_centres import refine_centres
+from planarcal.calib.dot_centres import not_refined_reasons, refine_centres
+from planarcal.calib.dot_sizes import (
+    DotSizes,
+    check_description,
+    measured_sizes,
+)
 from planarcal.calib.grid_search import (
     LATTICE_SYMMETRIES,
     board_pattern,
@@ -116,6 +121,9 @@ class BoardDetection:
     ``orientation_rule`` chose the reading."""
     orientation_rule: str = AMBIGUOUS_RULE
     warnings: tuple[str, ...] = ()
+    sizes: DotSizes | None = None
+    """The dots' sizes measured on the board (mm at the stated pitch), which the board's
+    stated diameter and origin marker were checked against (planarcal.calib.dot_sizes)."""
 
     def world_points(self) -> F64:
         """The dots' world positions in mm, matching image_points."""
@@ -170,6 +178,9 @@ def detect_board(
     ``.diagnostics``: the blobs and the candidate grids refused). ``turned=True`` accepts a
     non-square board without an origin marker that lies turned by 90 degrees in the image
     (otherwise refused as BoardTurnedError: usually ``--cols`` and ``--rows`` swapped).
+    BoardMismatchError when the board found contradicts the description: its dots, measured
+    on the board, are not the stated diameter for the stated pitch, or its origin marker is
+    not the stated size (see planarcal.calib.dot_sizes).
     """
     if polarity not in ("auto", "dark", "light"):
         raise ArgumentError(f"polarity must be 'auto', 'dark' or 'light', got {polarity!r}")
@@ -382,7 +393,7 @@ def _finish(
     warnings = (*warnings, *doubts)
     world = board.world_points()
     try:
-        corrected, h = _unbias(centres, world, areas, enlarged)
+        corrected, h, diameters_mm = _unbias(centres, world, areas, enlarged)
         residuals = reprojection_errors(h, world, corrected)
     except (DegenerateError, ValueError) as e:
         raise _RefusedError(f"the points do not form a grid: {e}") from None
@@ -393,12 +404,24 @@ def _finish(
             f"the dots continue past the grid's {beyond} edge: the board in view is larger than "
             f"{board.cols} x {board.rows} (check --cols and --rows)"
         )
-    if measured.why_not:
+    # Named by their index in the board's reading, as everywhere.
+    why_not = not_refined_reasons(measured.status[reading])
+    if why_not:
         warnings = (
             *warnings,
-            f"{len(measured.why_not)} of {len(refined)} dots could not be measured and keep "
-            f"a coarser centre ({'; '.join(measured.why_not[:3])})",
+            f"{len(why_not)} of {len(refined)} dots could not be measured and keep "
+            f"a coarser centre ({'; '.join(why_not[:3])})",
         )
+    dot_sizes = measured_sizes(
+        board,
+        diameters_mm,
+        enlarged,
+        diameters,
+        orientation == "marker",
+        ink_dark,
+        corrected,
+    )
+    check_description(board, dot_sizes)
     height, width = ink_dark.shape[:2]
     return BoardDetection(
         board=board,
@@ -413,6 +436,7 @@ def _finish(
         orientation=orientation,
         orientation_rule=rule,
         warnings=warnings,
+        sizes=dot_sizes,
     )
 
 
@@ -657,10 +681,12 @@ def conic_centre_offset(h: F64, centres_mm: F64, diameters_mm: F64) -> F64:
     return out
 
 
-def _diameters_mm(h: F64, world: F64, areas_px: F64, enlarged: NDArray[np.bool_]) -> F64:
+def _diameters_mm(
+    h: F64, world: F64, areas_px: F64, enlarged: NDArray[np.bool_], *, shared: bool = True
+) -> F64:
     """Each dot's diameter on the board, mm, from its ink area in the image through the
-    homography's local scale: the regular dots share their median (less noisy than each
-    one's), enlarged dots keep their own."""
+    homography's local scale: with `shared`, the regular dots share their median (less noisy
+    than each one's), enlarged dots keep their own."""
     hinv = np.linalg.inv(h)
     eps = 1e-3
     p = transform_points(h, world)
@@ -671,24 +697,27 @@ def _diameters_mm(h: F64, world: F64, areas_px: F64, enlarged: NDArray[np.bool_]
     scale = np.abs(jx[:, 0] * jy[:, 1] - jx[:, 1] * jy[:, 0])
     d = 2.0 * np.sqrt(areas_px * scale / np.pi)
     regular = ~enlarged
-    if regular.any():
+    if shared and regular.any():
         d = np.where(regular, float(np.median(d[regular])), d)
     out: F64 = d
     return out
 
 
-def _unbias(points: F64, world: F64, areas_px: F64, enlarged: NDArray[np.bool_]) -> tuple[F64, F64]:
+def _unbias(
+    points: F64, world: F64, areas_px: F64, enlarged: NDArray[np.bool_]
+) -> tuple[F64, F64, F64]:
     """The measured centres (centroids of the dots' images) moved to the images of the dots'
     centres, by the conic offset under the homography they imply, with the dots' diameters
     measured from the image; recomputed once from the corrected points' homography (it
-    changes by well under 1e-4 px after)."""
+    changes by well under 1e-4 px after). Returns the centres, the homography and each
+    dot's own diameter on the board (mm at the board's pitch) under it."""
     h = estimate_homography(world, points, refine=True)
     diameters = _diameters_mm(h, world, areas_px, enlarged)
     corrected = points
     for _ in range(2):
         corrected = points - conic_centre_offset(h, world, diameters)
         h = estimate_homography(world, corrected, refine=True)
-    return corrected, h
+    return corrected, h, _diameters_mm(h, world, areas_px, enlarged, shared=False)
 
 
 def _continues_beyond(

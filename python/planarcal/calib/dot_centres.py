@@ -54,6 +54,17 @@ class DotCentres:
     """(N,) False where the dot kept its starting centre."""
     why_not: tuple[str, ...]
     """For each dot not refined, why (in the order of the dots)."""
+    status: NDArray[np.int64] = dataclasses.field(
+        default_factory=lambda: np.zeros(0, dtype=np.int64)
+    )
+    """(N,) the core's code of why each dot was not refined (0: refined); see
+    not_refined_reasons."""
+
+
+def not_refined_reasons(status: NDArray[np.int64]) -> tuple[str, ...]:
+    """ "dot k: why" for each dot whose `status` is not 0, k its position in `status` (the
+    dots' index once `status` is in the board's order)."""
+    return tuple(f"dot {k}: {_REASONS[code]}" for k, code in enumerate(status.tolist()) if code)
 
 
 def refine_centres(ink_dark: NDArray[np.float32], points: F64, diameters: F64) -> DotCentres:
@@ -65,5 +76,5 @@ def refine_centres(ink_dark: NDArray[np.float32], points: F64, diameters: F64) -
     centres, areas, status = refine_dot_centres(
         ink_dark, np.asarray(points, dtype=np.float64), np.asarray(diameters, dtype=np.float64)
     )
-    why = tuple(f"dot {k}: {_REASONS[code]}" for k, code in enumerate(status.tolist()) if code)
-    return DotCentres(centres, areas, status == 0, why)
+    codes = np.asarray(status, dtype=np.int64)
+    return DotCentres(centres, areas, codes == 0, not_refined_reasons(codes), codes)

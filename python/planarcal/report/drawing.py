@@ -79,9 +79,10 @@ def detection_label(detection: Any, residual_note: str | None = None) -> list[st
 
 
 def draw_detection(image: Any, detection: Any, *, residual_note: str | None = None) -> U8:
-    """The image with every found dot centre marked and numbered in board order, the grid
-    drawn through them, the board's origin and X / Y directions, the dots the detection
-    flags (not refined: a red cross; enlarged: a magenta ring) and the lines of
+    """The image with every found dot centre marked and labelled with its index k = row x
+    cols + col (0 the origin dot: the numbering of the CSV files, the API and the summary),
+    the grid drawn through them, the board's origin and X / Y directions, the dots the
+    detection flags (not refined: a red cross; enlarged: a magenta ring) and the lines of
     `detection_label` (`residual_note`: which model the residual quoted comes from)."""
     canvas = _canvas(image)
     s = _scale(canvas)
@@ -119,7 +120,7 @@ def draw_detection(image: Any, detection: Any, *, residual_note: str | None = No
         cv2.circle(canvas, ip(p), int(radius * f), (0, 0, 255), max(1, int(s)), cv2.LINE_AA, shift)
         cv2.putText(
             canvas,
-            str(k + 1),
+            str(k),
             (int(p[0] + radius), int(p[1] - radius)),
             cv2.FONT_HERSHEY_SIMPLEX,
             0.35 * s,

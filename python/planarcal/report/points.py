@@ -1,5 +1,7 @@
 """The per-point table as CSV: the paper's Tables 2-4 and the leave-one-out error, every
-point, with the detection's flags for each dot."""
+point, with the detection's flags for each dot. Dots are numbered as everywhere in planarcal
+(the touch CSV, the API, the summary, the detection figure): by their index k = row x cols
++ col, 0 the origin dot."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ from planarcal.calib.calibration import Calibration
 from planarcal.report.drawing import dot_flags
 
 CSV_COLUMNS = (
-    "point",
+    "dot",
     "row",
     "col",
     "world_x_mm",
@@ -37,8 +39,9 @@ CSV_COLUMNS = (
 
 
 def points_csv(cal: Calibration, detection: Any = None) -> str:
-    """The per-point table as CSV: point (1-based), its row and column on the board (when
-    known), world and image coordinates, reprojection (Table 3), world after calibration
+    """The per-point table as CSV: the dot's index (``dot``: k = row x cols + col, 0 the
+    origin dot; the row of ``world_points`` without a board), its row and column on the
+    board (when known), world and image coordinates, reprojection (Table 3), world after calibration
     and deviations (Table 4), the leave-one-out deviation and error (mm, and px in the
     image), the leave-one-out error the fit's covariance predicts (1-sigma, mm), and whether
     the detection refined the dot's centre and found it enlarged (1 / 0; empty when the
@@ -66,7 +69,7 @@ def points_csv(cal: Calibration, detection: Any = None) -> str:
         ]
         writer.writerow(
             [
-                i + 1,
+                i,
                 row,
                 col,
                 *(f"{v:.6f}" if math.isfinite(v) else "" for v in values),

@@ -1,8 +1,13 @@
 """The calibration's summary, as text for people and as one JSON-ready object: the
-reprojection and leave-one-out errors, the lens model (its parameters, the models tried and
-why this one, the figures before and after it), the uncertainty the covariance predicts
-against the measured one, the printer-scale correction, and what the detection reported;
-and the residual line the detection figure carries."""
+reprojection and leave-one-out errors (in the image, px, which no wrong description of the
+board can flatter, and on the plane, mm, which scale with the stated pitch), the verdict
+(from the pixels), the lens model (its parameters, the models tried and why this one, the
+figures before and after it), the uncertainty the covariance predicts against the measured
+one, the printer-scale correction, and what the detection reported (the dots' measured
+sizes among it); and the residual line the detection figure carries.
+
+Dots are named by their index k = row x cols + col, 0 the origin dot: the numbering of the
+CSV files, the API and the detection figure."""
 
 from __future__ import annotations
 
@@ -12,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from planarcal.calib.calibration import Calibration
+from planarcal.calib.calibration import Calibration, CalibrationSummary
 from planarcal.report.drawing import dot_flags, homography_residual_note
 from planarcal.report.fits import fitted_parameters, homography_alone
 from planarcal.report.mapping import max_displacement_px
@@ -35,6 +40,9 @@ def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
         "max_abs_dx_mm": s.max_abs_dx_mm,
         "max_abs_dy_mm": s.max_abs_dy_mm,
         "loo_mean_error_px": s.loo_mean_px,
+        "loo_rms_error_px": s.loo_rms_px,
+        "loo_max_error_px": s.loo_max_px,
+        "verdict": verdict(s),
         "predicted_loo_rms_error_mm": s.predicted_loo_rms_mm,
         "loo_rms_measured_over_predicted": _ratio(s.loo_rms_mm, s.predicted_loo_rms_mm),
         "lens_model": cal.lens_model,
@@ -62,8 +70,8 @@ def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
 
 def _detection_json(detection: Any) -> dict[str, Any]:
     """The finder, the polarity and the pitch; and, when the detection carries them, the
-    dots not refined and the enlarged ones (1-based point numbers, as in the CSV), the
-    orientation and the warnings."""
+    dots not refined and the enlarged ones (their indices k = row x cols + col, 0 the origin
+    dot, as in the CSV files and the API), the orientation and the warnings."""
     out: dict[str, Any] = {
         "method": detection.method,
         "polarity": detection.polarity,
@@ -73,10 +81,10 @@ def _detection_json(detection: Any) -> dict[str, Any]:
     refined = dot_flags(detection, "refined")
     if refined is not None:
         out["n_not_refined"] = int((~refined).sum())
-        out["not_refined_points"] = _point_numbers(~refined)
+        out["not_refined_dots"] = _dot_indices(~refined)
     enlarged = dot_flags(detection, "enlarged")
     if enlarged is not None:
-        out["enlarged_points"] = _point_numbers(enlarged)
+        out["enlarged_dots"] = _dot_indices(enlarged)
     orientation = _orientation(detection)
     if orientation is not None:
         out["orientation"] = orientation
@@ -84,12 +92,16 @@ def _detection_json(detection: Any) -> dict[str, Any]:
     warnings = _warnings(detection)
     if warnings is not None:
         out["warnings"] = list(warnings)
+    sizes = getattr(detection, "sizes", None)
+    if sizes is not None:
+        out["dot_sizes"] = sizes.to_dict(detection.board)
     return out
 
 
-def _point_numbers(flags: NDArray[np.bool_]) -> list[int]:
-    """The 1-based numbers of the flagged points (the CSV's and the text's numbering)."""
-    return [int(k) + 1 for k in np.flatnonzero(flags)]
+def _dot_indices(flags: NDArray[np.bool_]) -> list[int]:
+    """The indices of the flagged dots: k = row x cols + col, 0 the origin dot (the one
+    numbering of the CSV files, the API, the text and the detection figure)."""
+    return [int(k) for k in np.flatnonzero(flags)]
 
 
 def _orientation(detection: Any) -> str | None:
@@ -216,21 +228,85 @@ def _detection_text(detection: Any) -> list[str]:
         else:
             lines.append(
                 f"Centres refined: {int(refined.sum())} of {n} dots; not refined (a coarser "
-                f"centre kept): {_point_list(~refined)}"
+                f"centre kept): {_dot_list(~refined)}"
             )
     enlarged = dot_flags(detection, "enlarged")
     if enlarged is not None and enlarged.any():
-        lines.append(f"Enlarged dots: {_point_list(enlarged)}")
+        lines.append(f"Enlarged dots: {_dot_list(enlarged)}")
     lines += [f"Warning: {w}" for w in _warnings(detection) or ()]
     return lines
 
 
-def _point_list(flags: NDArray[np.bool_], most: int = 20) -> str:
-    """ "point 3" or "points 3, 17, 40" (1-based), the first `most` of a long list."""
-    numbers = _point_numbers(flags)
+def _dot_list(flags: NDArray[np.bool_], most: int = 20) -> str:
+    """ "dot 3" or "dots 3, 17, 40" (indices, 0 the origin dot), the first `most` of a long
+    list."""
+    numbers = _dot_indices(flags)
     shown = ", ".join(str(k) for k in numbers[:most])
     more = f" and {len(numbers) - most} more" if len(numbers) > most else ""
-    return f"point{'s' if len(numbers) > 1 else ''} {shown}{more}"
+    return f"dot{'s' if len(numbers) > 1 else ''} {shown}{more}"
+
+
+# Leave-one-out RMS in the image (px) up to which a calibration is called excellent, good,
+# fair; beyond the last, poor. In pixels, not mm: mm scale with the board's stated pitch, so
+# a pitch stated too small would flatter them. A rendered board's dots give about 0.01 px;
+# real photographs of a printed board 0.3-0.6 px (the paper is not flat, the lens not quite
+# the model).
+VERDICT_PX = (("excellent", 0.1), ("good", 0.3), ("fair", 1.0))
+
+
+def verdict(s: CalibrationSummary) -> str:
+    """The calibration in a word, by its RMS leave-one-out error in the image (px):
+    "excellent", "good", "fair", "poor", or "unknown" where there is none (too few points)."""
+    if not math.isfinite(s.loo_rms_px):
+        return "unknown"
+    return next((word for word, px in VERDICT_PX if s.loo_rms_px <= px), "poor")
+
+
+_VERDICT_TEXT = {
+    "excellent": "the model fits every dot it has not seen to a tenth of a pixel or better",
+    "good": "the model fits the dots it has not seen to a few tenths of a pixel",
+    "fair": (
+        "the dots stray from the model by up to a pixel: a paper that is not flat, a lens "
+        "the model does not capture, or dots mislocated (see the deviations figure)"
+    ),
+    "poor": (
+        "the dots stray from the model by more than a pixel: the board is not flat, moved, "
+        "or is not the board described; calibrate again"
+    ),
+    "unknown": "too few points to leave one out",
+}
+
+
+def _verdict_text(s: CalibrationSummary) -> str:
+    word = verdict(s)
+    figure = f" (leave-one-out RMS {s.loo_rms_px:.3f} px)" if math.isfinite(s.loo_rms_px) else ""
+    return f"Verdict: {word}{figure}: {_VERDICT_TEXT[word]}"
+
+
+def _sizes_text(detection: Any) -> list[str]:
+    """The dots' measured size against the stated one (and the marker's), as far as the
+    detection carries them."""
+    sizes = getattr(detection, "sizes", None)
+    if sizes is None:
+        return []
+    board = detection.board
+    pitch = float(board.pitch)
+    measured = (
+        f"Dot size: {sizes.diameter_mm:.3g} mm measured at the stated pitch of {pitch:g} mm "
+        f"({sizes.diameter_to_pitch(board):.2f} of the pitch, {sizes.dot_px:.1f} px across)"
+    )
+    if sizes.marker_mm is not None:
+        measured += f"; origin marker {sizes.marker_mm:.3g} mm"
+    if board.diameter is None:
+        check = "no diameter stated: compare it with the board (a ruler)"
+    elif sizes.tolerance is None:
+        check = f"the stated {board.diameter:g} mm is not checked: {sizes.unchecked}"
+    else:
+        check = (
+            f"the stated {board.diameter:g} mm agrees (within the {100 * sizes.tolerance:.0f} % "
+            "the measurement allows)"
+        )
+    return [measured, f"  {check}"]
 
 
 def _model_phrase(cal: Calibration) -> str:
@@ -285,20 +361,26 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
             f"{detection.polarity} dots, {detection.pitch_px:.1f} px apart)"
         )
         lines += _detection_text(detection)
+        lines += _sizes_text(detection)
     fit = f"{s.solver}" + (" + Levenberg-Marquardt" if s.refine else "")
     lines += [
         f"Homography: {fit}, from {s.n_points} points",
         f"Lens: {cal.lens_note}",
         *_lens_text(cal),
         f"Reprojection error (px), {_model_phrase(cal)}: mean {s.mean_px:.3f}, "
-        f"RMS {s.rms_px:.3f}, max {s.max_px:.3f} (point {cal.stats.argmax + 1}), "
+        f"RMS {s.rms_px:.3f}, max {s.max_px:.3f} (dot {cal.stats.argmax}), "
         f"min {s.min_px:.3f}",
+        f"Leave-one-out error (px): mean {s.loo_mean_px:.3f}, RMS {s.loo_rms_px:.3f}, "
+        f"max {s.loo_max_px:.3f}",
+        "  (each dot predicted in the image by a fit made without it: the accuracy to expect",
+        "  at points the calibration has not seen; the residuals above flatter the fit)",
+        _verdict_text(s),
         f"World coordinates after calibration: |dX| <= {s.max_abs_dx_mm:.3f} mm, "
         f"|dY| <= {s.max_abs_dy_mm:.3f} mm",
         f"Leave-one-out error (mm): mean {s.loo_mean_mm:.3f}, RMS {s.loo_rms_mm:.3f}, "
         f"max {s.loo_max_mm:.3f}",
-        "  (each point predicted by a fit made without it: the accuracy to expect at points",
-        "  the calibration has not seen; the residuals above flatter the fit)",
+        "  (millimetres at the board's stated pitch: a wrong pitch scales every one of them,",
+        "  these errors too; the figures in px above do not depend on it)",
     ]
     ratio = _ratio(s.loo_rms_mm, s.predicted_loo_rms_mm)
     if math.isfinite(ratio):
