@@ -162,6 +162,8 @@ def test_run_on_a_damaged_video_processes_what_opencv_decodes_and_says_what_it_s
     assert figures["frames"] == reference == len(out.read_text().splitlines())
     assert figures["frames_undecodable"] >= 1 and figures["frames_declared"] == n
     assert figures["read"] == figures["frames"] + figures["frames_undecodable"]
+    # What FFmpeg passed over without a failed read for each frame is counted at the end.
+    assert figures["read"] + figures["frames_missing"] == n
     # Said while it happened, with the frames' numbers.
     assert re.search(r"could not be decoded \(frames? \d+", result.stderr), result.stderr
     lines = [json.loads(x) for x in out.read_text().splitlines()]
@@ -215,7 +217,8 @@ def test_a_video_truncated_while_it_is_read_ends_and_says_so(
                 with path.open("r+b") as f:  # cut to its first 40 %, under the reader
                     f.truncate(int(size * 0.4))
     assert 3 <= len(results) < n and t.stats.frames_declared == n
-    assert f"of the {n} frames its header declares" in caplog.text
+    assert t.stats.read + t.stats.frames_missing == n and t.stats.frames_missing > 0
+    assert f"of the {n} frames its header declares: {t.stats.frames_missing} more" in caplog.text
     assert "truncated" in caplog.text
 
 

@@ -184,6 +184,10 @@ class LoopStats:
     """Frames of a live source dropped because the loop was busy."""
     frames_declared: int | None = None
     """The number of frames a video file's header declares (None: not a file, or unknown)."""
+    frames_missing: int = 0
+    """Frames a video file's header declares that it neither delivered nor counted as
+    undecodable (lost in a damaged stretch, or to a truncated end): as exact as the header's
+    count."""
     camera_lost: int = 0
     """Times the camera or stream stopped delivering (and was closed, to be reopened)."""
     camera_reconnects: int = 0
@@ -569,12 +573,17 @@ class Tracker:
         self.stats.frames_declared = declared
         got = getattr(camera, "frames_read", 0) + sum(_losses(camera))
         if declared is not None and got < declared:
+            # FFmpeg may pass over several damaged frames in one failed read, and a truncated
+            # file's last frames are never reached: the header's count tells how many.
+            self.stats.frames_missing = declared - got
             _log.warning(
-                "%s ended after %d of the %d frames its header declares: the rest could not "
-                "be read (the file is truncated, or damaged at its end)",
+                "%s ended after %d of the %d frames its header declares: %d more were lost "
+                "(passed over in a damaged stretch, or the file is truncated or damaged at "
+                "its end)",
                 camera.label,
                 got,
                 declared,
+                declared - got,
             )
 
     def _lost(self, error: CameraError) -> None:
