@@ -125,6 +125,8 @@ def test_the_origin_marker_is_checked_against_the_dots() -> None:
     det = detect_board(image, board)
     assert det.orientation == "marker" and det.sizes is not None
     assert det.sizes.marker_mm == pytest.approx(20.0, rel=0.05)
+    text = report.summary_text(Calibration.from_detection(det), det)
+    assert "the stated 10 mm agrees" in text and "the stated marker of 20 mm agrees too" in text
     # The marker stated 1.5 x the dots, the size of the default one: refused.
     with pytest.raises(
         BoardMismatchError, match=r"origin marker measures (1\.9|2\.0)\d times the dots"

@@ -306,6 +306,9 @@ def _sizes_text(detection: Any) -> list[str]:
             f"the stated {board.diameter:g} mm agrees (within the {100 * sizes.tolerance:.0f} % "
             "the measurement allows)"
         )
+    marker_checked = sizes.tolerance is not None and board.marker_diameter is not None
+    if marker_checked and sizes.marker_mm is not None:
+        check += f"; the stated marker of {board.marker_diameter:g} mm agrees too"
     return [measured, f"  {check}"]
 
 
