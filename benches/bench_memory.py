@@ -104,7 +104,8 @@ def main() -> None:
     print(
         f"{stats.frames} frames of 1280 x 720 ({video_mib:.1f} MiB of MPEG-4, written in "
         f"{write_s:.1f} s), {stats.objects / max(stats.frames, 1):.1f} parts per frame; "
-        f"corrupt {stats.corrupt}, failed {stats.failed}, dropped {stats.dropped}"
+        f"undecodable {stats.frames_undecodable}, failed {stats.failed}, dropped "
+        f"{stats.frames_dropped}"
     )
     print(
         f"Loop: {stats.frames / wall:.0f} frames per second ({wall:.1f} s, Tracker + JSON "
