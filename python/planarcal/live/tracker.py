@@ -87,6 +87,10 @@ after each failed attempt (and after a camera that failed again soon after it wa
 REOPEN_MAX_S = 5.0
 """The longest wait between two attempts to reopen a camera or stream, s."""
 
+REOPEN_REPORT_S = 60.0
+"""Once the wait is at its longest, a failed attempt is reported about this often, s (each
+one before: a camera down for hours does not flood the log)."""
+
 # The options detect_objects takes (its keyword arguments).
 _DETECT_OPTIONS = frozenset(inspect.signature(detect_objects).parameters) - {"image"}
 
@@ -646,8 +650,7 @@ class Tracker:
             return False
         growing = self._delay < REOPEN_MAX_S
         self._delay = min(2 * self._delay, REOPEN_MAX_S)
-        # Each attempt while the wait grows, then about once a minute.
-        if growing or attempt % max(1, round(60 / REOPEN_MAX_S)) == 0:
+        if growing or attempt % max(1, round(REOPEN_REPORT_S / REOPEN_MAX_S)) == 0:
             _log.warning(
                 "camera down for %.1f s: %s; reopening in %.1f s (attempt %d)",
                 waited,
