@@ -121,6 +121,8 @@ def measured_sizes(
             f"the dots are {dot_px:.1f} px across in the image, too few to size them (blur "
             "swells small dots)"
         )
+    elif not math.isfinite(blur):
+        unchecked = "the dots' edges could not be measured"
     elif not tolerance <= MAX_SIZE_TOLERANCE:
         unchecked = f"the dots' edges are too blurred ({blur:.1f} px) to size them"
     return DotSizes(diameter, marker_mm, dot_px, None if unchecked else tolerance, unchecked, blur)
@@ -218,6 +220,8 @@ def edge_blur_px(
             continue
         yy, xx = np.mgrid[y0:y1, x0:x1]
         values = ink_dark[y0:y1, x0:x1][(xx - x) ** 2 + (yy - y) ** 2 <= r * r]
+        if values.size < 9:
+            continue
         paper, ink = np.percentile(values, (90.0, 3.0))
         if paper - ink <= 0:
             continue
