@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import cv2
 import numpy as np
 import pytest
@@ -153,3 +155,23 @@ def test_a_board_partly_out_of_view_is_refused() -> None:
     assert scene.dots_in_view(margin_px=0).sum() < BOARD.n_points
     with pytest.raises(BoardNotFoundError, match="fewer dots than the board has"):
         detect_board(scene.image, BOARD)
+
+
+def test_dots_that_cannot_be_measured_are_named_by_their_index_on_the_board() -> None:
+    """The paper's board turned by 180 degrees in the image, cut just past its leftmost dot:
+    the dots the border cuts keep a coarser centre, and the warning names them by their index
+    in the board's reading (k = row x cols + col, as every output numbers them), the dots at
+    the left edge of the image; it named them in the order the finder met them (issue 21)."""
+    scene = synth.paper_scene(seed=0, objects=False).calibration
+    turned = np.ascontiguousarray(scene.image[::-1, ::-1])
+    whole = detect_board(turned, BOARD)
+    left = int(np.argmin(whole.image_points[:, 0]))
+    edge = whole.image_points[left, 0] - 0.5 * whole.dot_diameters_px[left]
+    cut = np.ascontiguousarray(turned[:, int(edge - 1.5) :])
+    det = detect_board(cut, BOARD)
+    (warning,) = [w for w in det.warnings if "could not be measured" in w]
+    named = [int(k) for k in re.findall(r"dot (\d+): cut by the image border", warning)]
+    assert named and set(named) <= set(np.flatnonzero(~det.refined).tolist())
+    pitch = det.pitch_px
+    for k in named:
+        assert det.image_points[k, 0] < pitch, (k, det.image_points[k])  # at the left edge
