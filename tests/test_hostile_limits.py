@@ -1,6 +1,8 @@
 """Limits found by trying hostile input, each where no other test file owns it: a board too
-large to compute, the mode of the production loop's appended output file, and 10^7 points
-given to the core's entry points under an address-space limit (MemoryError, not an abort)."""
+large to compute, the mode of the production loop's appended output file, 10^7 points given
+to the core's entry points under an address-space limit (MemoryError, not an abort), and
+numbers beyond double precision (10**400, or 1e308 against 1e-308), which NumPy's
+OverflowError and LinAlgError ("SVD did not converge") used to escape from."""
 
 from __future__ import annotations
 
@@ -10,10 +12,19 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import planarcal
+from planarcal import synth
+from planarcal.camera import plane_pose
+from planarcal.errors import ArgumentError, BoardError, ImageError, IntrinsicsError
 from planarcal.live.outputs import open_output
+
+# An integer float() cannot hold: OverflowError, not a number NumPy or math can take.
+HUGE = 10**400
+K = np.array([[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]])
+H = np.array([[2.0, 0.1, 100.0], [0.05, 2.0, 80.0], [1e-4, 2e-4, 1.0]])
 
 
 @pytest.mark.parametrize(("cols", "rows"), [(10**9, 10**9), (1001, 10), (10, 1001)])
@@ -119,3 +130,90 @@ def test_ten_million_points_without_the_memory_are_a_memory_error() -> None:
             "FittedPlane.leave_one_out",
         ]
     ], run.stderr[-2000:]
+
+
+@pytest.mark.parametrize("huge", [HUGE, -HUGE], ids=["10**400", "-10**400"])
+@pytest.mark.parametrize("name", ["pitch", "diameter", "marker_diameter"])
+def test_a_board_length_beyond_double_precision_is_a_board_error(name: str, huge: int) -> None:
+    options = {"origin_marker": True} if name == "marker_diameter" else {}
+    with pytest.raises(BoardError, match=f"{name} must be a positive length in mm"):
+        planarcal.CircleGridBoard(cols=5, rows=4, **{name: huge}, **options)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("entry", [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2)])
+def test_a_camera_matrix_entry_beyond_double_precision_is_an_intrinsics_error(
+    entry: tuple[int, int],
+) -> None:
+    k = K.tolist()
+    k[entry[0]][entry[1]] = HUGE
+    with pytest.raises(IntrinsicsError, match="camera matrix"):
+        planarcal.CameraIntrinsics(k, np.zeros(5), (640, 480))
+    with pytest.raises(IntrinsicsError, match="camera matrix"):
+        plane_pose(k, H)
+
+
+@pytest.mark.parametrize("index", [0, 4, 13])
+def test_a_distortion_coefficient_beyond_double_precision_is_an_intrinsics_error(
+    index: int,
+) -> None:
+    d: list[object] = [0.0] * 14
+    d[index] = HUGE
+    with pytest.raises(IntrinsicsError, match="distortion coefficients"):
+        planarcal.CameraIntrinsics(K, d, (640, 480))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("field", ["rms_px", "per_view_rms_px"])
+def test_a_calibration_figure_beyond_double_precision_is_an_intrinsics_error(field: str) -> None:
+    value = (HUGE,) if field == "per_view_rms_px" else HUGE
+    with pytest.raises(IntrinsicsError, match="rms_px"):
+        planarcal.CameraIntrinsics(K, np.zeros(5), (640, 480), **{field: value})  # type: ignore[arg-type]
+
+
+def test_a_pose_whose_numbers_overflow_is_an_intrinsics_error() -> None:
+    h = H.tolist()
+    h[1][2] = HUGE
+    with pytest.raises(IntrinsicsError, match="H must be a 3 x 3 array"):
+        plane_pose(K, h)
+    # Finite, but K^-1 H overflows: NumPy's SVD said "SVD did not converge".
+    k = np.array([[1e308, 1e-154, 1e-308], [0.0, 1e308, -1e308], [0.0, 0.0, 1.0]])
+    h_far = np.array([[5e-324, 5e-324, 3.0], [0.0, 1.0, -1e308], [1e308, 1e154, 1.0]])
+    with pytest.raises(IntrinsicsError, match="overflows double precision"):
+        plane_pose(k, h_far)
+
+
+@pytest.fixture(scope="module")
+def scene() -> synth.PaperScene:
+    return synth.paper_scene(seed=0)
+
+
+def test_points_and_heights_beyond_double_precision_are_argument_errors(
+    scene: synth.PaperScene,
+) -> None:
+    assert scene.calibration.board is not None
+    cal = planarcal.Calibration.from_detection(
+        planarcal.detect_board(scene.calibration.image, scene.calibration.board)
+    )
+    with pytest.raises(ArgumentError, match="points_px"):
+        cal.image_to_world([[HUGE, 100.0]])
+    with pytest.raises(ArgumentError, match="height"):
+        cal.image_to_world([[100.0, 100.0]], height=HUGE)
+    with pytest.raises(ArgumentError, match="points_mm"):
+        cal.world_to_image([[10.0, HUGE]])
+
+
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [
+        ("min_area_px", HUGE),
+        ("max_area_px", -HUGE),
+        ("canny", (HUGE, 100.0)),
+        ("blur_sigma", HUGE),
+        ("blur_sigma", 1e308),  # OpenCV's kernel size overflowed: a cv2.error
+    ],
+    ids=["min_area_px", "max_area_px", "canny", "blur_sigma", "blur_sigma 1e308"],
+)
+def test_detection_options_beyond_double_precision_are_image_errors(
+    scene: synth.PaperScene, option: str, value: object
+) -> None:
+    with pytest.raises(ImageError, match=option):
+        planarcal.detect_objects(scene.objects.image, **{option: value})  # type: ignore[arg-type]

@@ -21,7 +21,10 @@ def real(name: str, value: object, exc: type[ValueError] = ArgumentError) -> flo
     """value as a finite float (a Python or NumPy number, not a bool)."""
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
         raise exc(f"{name} must be a number, got {value!r}")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond double precision (10**400)
+        v = math.inf
     if not math.isfinite(v):
         raise exc(f"{name} must be finite, got {value!r}")
     return v

@@ -24,6 +24,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal import arguments
 from planarcal.errors import BoardError
 
 MAX_BOARD_DOTS_PER_SIDE = 1000
@@ -71,12 +72,10 @@ class CircleGridBoard:
             value = getattr(self, name)
             if value is None and name != "pitch":
                 continue
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, int | float | np.floating | np.integer)
-                or not (math.isfinite(value) and value > 0)
-            ):
-                raise BoardError(f"{name} must be a positive length in mm, got {value!r}")
+            try:
+                arguments.positive(name, value, BoardError)
+            except BoardError:
+                raise BoardError(f"{name} must be a positive length in mm, got {value!r}") from None
         spacing = self.neighbour_distance
         if self.diameter is not None and self.diameter >= spacing:
             raise BoardError(

@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planarcal import arguments
 from planarcal.calib import calibration_file, frame_size
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration_file import FILE_FORMAT, FILE_VERSION, READS_VERSIONS
@@ -584,7 +585,7 @@ class Calibration:
         )
         if image_size is not None:
             self.check_image_size(image_size)
-        arr = np.asarray(points_px, dtype=np.float64)
+        arr = arguments.real_array("points_px", points_px)
         single = arr.ndim == 1
         if single:
             if arr.shape != (2,):
@@ -592,9 +593,9 @@ class Calibration:
             arr = arr.reshape(1, 2)
         arr = _points(arr, "points_px")
         h = (
-            np.broadcast_to(np.asarray(height, dtype=np.float64), (len(arr),))
+            np.broadcast_to(arguments.real_array("height", height), (len(arr),))
             if np.ndim(height) == 0
-            else np.asarray(height, dtype=np.float64)
+            else arguments.real_array("height", height)
         )
         if h.shape != (len(arr),) or not np.isfinite(h).all():
             raise ArgumentError(
@@ -669,7 +670,7 @@ class Calibration:
     def world_to_image(self, points_mm: ArrayLike) -> F64:
         """Plane positions in mm -> pixel positions (lens included): (N, 2) -> (N, 2), or
         (2,) -> (2,)."""
-        arr = np.asarray(points_mm, dtype=np.float64)
+        arr = arguments.real_array("points_mm", points_mm)
         single = arr.ndim == 1
         if single and arr.shape != (2,):
             raise ArgumentError(f"a point must have 2 coordinates, got shape {arr.shape}")

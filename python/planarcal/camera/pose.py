@@ -98,26 +98,36 @@ def plane_pose(intrinsics_matrix: ArrayLike | CameraIntrinsics, H: ArrayLike) ->
     )
     try:
         h = np.array(H, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # Overflow: an integer like 10**400
         raise IntrinsicsError("H must be a 3 x 3 array of numbers") from None
     if h.shape != (3, 3) or not np.isfinite(h).all():
         raise IntrinsicsError(f"H must be a finite 3 x 3 matrix, got {h.tolist()}")
-    m = np.linalg.solve(k, h)
-    n1, n2, n3 = (float(np.linalg.norm(m[:, i])) for i in range(3))
-    scale = 0.5 * (n1 + n2)
-    # det(K^-1 H) = lambda^3 (r3 . t), lambda^3 times the camera's distance from the plane.
-    if not (n1 > 0 and n2 > 0 and n3 > 0) or abs(np.linalg.det(m)) <= 1e-12 * n1 * n2 * n3:
-        raise IntrinsicsError(
-            f"H is singular: it does not map a plane onto the image ({h.tolist()})"
-        )
-    if abs(m[2, 2]) <= 1e-12 * n3:
-        raise IntrinsicsError(
-            "the plane's origin lies in the camera's focal plane (t_z = 0): H cannot be the "
-            "homography of a plane seen by this camera"
-        )
-    lam = scale if m[2, 2] > 0 else -scale
-    r1, r2, t = m[:, 0] / lam, m[:, 1] / lam, m[:, 2] / lam
-    approx = np.column_stack([r1, r2, np.cross(r1, r2)])
+    # Overflow and NaN are looked for below, not warned of on the way.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        m = np.linalg.solve(k, h)
+        n1, n2, n3 = (float(np.linalg.norm(m[:, i])) for i in range(3))
+        scale = 0.5 * (n1 + n2)
+        # det(K^-1 H) = lambda^3 (r3 . t), lambda^3 times the camera's distance from the plane.
+        if not (n1 > 0 and n2 > 0 and n3 > 0) or abs(np.linalg.det(m)) <= 1e-12 * n1 * n2 * n3:
+            raise IntrinsicsError(
+                f"H is singular: it does not map a plane onto the image ({h.tolist()})"
+            )
+        if abs(m[2, 2]) <= 1e-12 * n3:
+            raise IntrinsicsError(
+                "the plane's origin lies in the camera's focal plane (t_z = 0): H cannot be the "
+                "homography of a plane seen by this camera"
+            )
+        lam = scale if m[2, 2] > 0 else -scale
+        r1, r2, t = m[:, 0] / lam, m[:, 1] / lam, m[:, 2] / lam
+        approx = np.column_stack([r1, r2, np.cross(r1, r2)])
+        # K^-1 H or its rotation part beyond double precision (K and H of wildly different
+        # scales, 1e308 and 1e-308): NumPy's SVD would fail with "SVD did not converge".
+        finite = np.isfinite(m).all() and np.isfinite(approx).all() and np.isfinite(t).all()
+        if not (finite and math.isfinite(scale)):
+            raise IntrinsicsError(
+                "K^-1 H overflows double precision: the camera matrix and H cannot be of one "
+                f"camera and plane (K = {k.tolist()}, H = {h.tolist()})"
+            )
     u, _s, vt = np.linalg.svd(approx)
     rotation = u @ vt
     if np.linalg.det(rotation) < 0:  # cannot happen with r3 = r1 x r2; kept as a guard

@@ -5,12 +5,12 @@ checked value or raises IntrinsicsError saying what is wrong with it.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal import arguments
 from planarcal.camera.distortion import DIST_COEFF_LENGTHS
 from planarcal.errors import IntrinsicsError
 
@@ -25,7 +25,7 @@ def camera_matrix(value: Any) -> F64:
     pinhole camera."""
     try:
         k = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, OverflowError) as e:  # Overflow: an integer like 10**400
         raise IntrinsicsError(f"the camera matrix must be a 3 x 3 array of numbers: {e}") from None
     if k.shape != (3, 3):
         raise IntrinsicsError(f"the camera matrix must be 3 x 3, got shape {k.shape}")
@@ -48,7 +48,7 @@ def dist_coeffs(value: Any) -> F64:
     """A distortion vector as a read-only float64 (n,) array, n in DIST_COEFF_LENGTHS."""
     try:
         d = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, OverflowError) as e:  # Overflow: an integer like 10**400
         raise IntrinsicsError(f"the distortion coefficients must be numbers: {e}") from None
     if d.ndim == 2 and 1 in d.shape:
         d = d.reshape(-1)
@@ -73,10 +73,8 @@ def whole_number(name: str, value: Any, minimum: int) -> int:
 
 
 def nonnegative_number(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise IntrinsicsError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    if not (math.isfinite(v) and v >= 0):
+    v = arguments.real(name, value, IntrinsicsError)
+    if not v >= 0:
         raise IntrinsicsError(f"{name} must be a finite number >= 0, got {value!r}")
     return v
 

@@ -12,6 +12,7 @@ rows of objects from the top of the image, left to right in a row.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -19,7 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from planarcal import _core
+from planarcal import _core, arguments
 from planarcal.errors import ImageError
 from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
@@ -158,10 +159,16 @@ def _detect(
     outlines, an empty list)."""
     u8 = _grey_u8(image)
     h, w = u8.shape
-    if not (blur_sigma >= 0):
-        raise ImageError(f"blur_sigma must be >= 0, got {blur_sigma!r}")
-    min_area = (w * h) / 5000.0 if min_area_px is None else float(min_area_px)
-    max_area = (w * h) / 4.0 if max_area_px is None else float(max_area_px)
+    # 10**400 is refused here, where float() would raise OverflowError.
+    real = functools.partial(arguments.real, exc=ImageError)
+    # A blur wider than the image blurs it flat (and OpenCV's kernel size overflows).
+    if not (0 <= real("blur_sigma", blur_sigma) <= max(w, h)):
+        raise ImageError(
+            f"blur_sigma must be >= 0 and at most the image's size ({max(w, h)} px), got "
+            f"{blur_sigma!r}"
+        )
+    min_area = (w * h) / 5000.0 if min_area_px is None else real("min_area_px", min_area_px)
+    max_area = (w * h) / 4.0 if max_area_px is None else real("max_area_px", max_area_px)
     keep_mask = _mask(mask, (h, w))
     blurred = cv2.GaussianBlur(u8, (0, 0), blur_sigma) if blur_sigma > 0 else u8
     if canny is None:
@@ -170,7 +177,7 @@ def _detect(
         median = float(_core.median_grey(blurred, 16, 2))
         lo, hi = max(5.0, 0.33 * median), max(15.0, 0.66 * median)
     else:
-        lo, hi = float(canny[0]), float(canny[1])
+        lo, hi = arguments.pair("canny", canny, ImageError)
     edges = cv2.Canny(blurred, lo, hi, L2gradient=True)
     # Close small gaps so each outline is one closed contour.
     edges = cv2.morphologyEx(edges, cv2.MORPH_CLOSE, _CLOSE_KERNEL)
