@@ -18,6 +18,7 @@ from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import BoardDetection, detect_board
 from planarcal.errors import BoardError, BoardMismatchError
+from planarcal.report import drawing
 from planarcal.report.summary import verdict
 from planarcal.synth import CameraModel, PlanePose, jpeg, render_scene
 
@@ -194,3 +195,14 @@ def test_the_verdict_is_in_pixels() -> None:
         assert verdict(s) == word, (noise, s.loo_rms_px)
         # A millimetre scale ten times smaller leaves the verdict as it is.
         assert verdict(Calibration(world / 10, noisy, lens="none").summary()) == word
+
+
+def test_the_detection_figure_gives_the_measured_size(
+    images: dict[str, NDArray[np.uint8]],
+) -> None:
+    det = _detect(images["front_sharp"])
+    label = drawing.detection_label(det)
+    assert any(
+        "dots 12 mm across at the stated pitch of 20 mm (0.60 of the pitch)" in line
+        for line in label
+    ), label

@@ -161,7 +161,7 @@ def check_description(board: CircleGridBoard, sizes: DotSizes) -> None:
             f"wrong (the measurement allows {100 * tol:.0f} %). Measure both with a rule: a "
             "wrong pitch scales every millimetre the calibration reports, its errors too. If "
             "both are right (an overexposed or badly blurred image misleads the measurement), "
-            "leave the diameter out (no --diameter) to calibrate without this check."
+            "leave the diameter out (no --diameter; diameter=None) to calibrate without this check."
         )
     if board.marker_diameter is None or sizes.marker_mm is None:
         return

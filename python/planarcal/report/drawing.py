@@ -61,8 +61,9 @@ def homography_residual_note(residual_rms_px: float) -> str:
 
 def detection_label(detection: Any, residual_note: str | None = None) -> list[str]:
     """The lines written on the detection figure: the board and finder, what the residual is
-    (`residual_note`, by default the detection's own: the homography alone) and, when the
-    detection flags dots, what their marks mean."""
+    (`residual_note`, by default the detection's own: the homography alone), when the
+    detection flags dots, what their marks mean, and, when it measured them, the dots' size
+    (with what the labels number)."""
     board = detection.board
     lines = [
         f"{board.cols} x {board.rows} board, {detection.method} finder, {detection.polarity} dots",
@@ -75,6 +76,13 @@ def detection_label(detection: Any, residual_note: str | None = None) -> list[st
     enlarged = dot_flags(detection, "enlarged")
     if enlarged is not None and enlarged.any():
         lines.append(f"magenta ring: {int(enlarged.sum())} enlarged dot(s)")
+    sizes = getattr(detection, "sizes", None)
+    if sizes is not None:
+        lines.append(
+            f"dots {sizes.diameter_mm:.3g} mm across at the stated pitch of {board.pitch:g} mm "
+            f"({sizes.diameter_to_pitch(board):.2f} of the pitch); labels: dot index k = row x "
+            "cols + col"
+        )
     return lines
 
 
