@@ -12,6 +12,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -186,13 +187,17 @@ def scene() -> synth.PaperScene:
     return synth.paper_scene(seed=0)
 
 
-def test_points_and_heights_beyond_double_precision_are_argument_errors(
-    scene: synth.PaperScene,
-) -> None:
+@pytest.fixture(scope="module")
+def cal(scene: synth.PaperScene) -> planarcal.Calibration:
     assert scene.calibration.board is not None
-    cal = planarcal.Calibration.from_detection(
+    return planarcal.Calibration.from_detection(
         planarcal.detect_board(scene.calibration.image, scene.calibration.board)
     )
+
+
+def test_points_and_heights_beyond_double_precision_are_argument_errors(
+    cal: planarcal.Calibration,
+) -> None:
     with pytest.raises(ArgumentError, match="points_px"):
         cal.image_to_world([[HUGE, 100.0]])
     with pytest.raises(ArgumentError, match="height"):
@@ -217,3 +222,32 @@ def test_detection_options_beyond_double_precision_are_image_errors(
 ) -> None:
     with pytest.raises(ImageError, match=option):
         planarcal.detect_objects(scene.objects.image, **{option: value})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [
+        ("height_mm", HUGE),
+        ("max_jump_mm", -HUGE),
+        ("max_missing", 2**64),  # the core's usize
+        ("timeout_s", HUGE),
+        ("timeout_s", 1e308),  # its milliseconds overflowed round()
+        ("timeout_s", 2**63),  # threading's wait overflowed
+    ],
+    ids=["height_mm", "max_jump_mm", "max_missing", "timeout_s", "timeout_s 1e308", "2**63"],
+)
+def test_tracker_options_beyond_their_range_are_argument_errors(
+    scene: synth.PaperScene,
+    cal: planarcal.Calibration,
+    tmp_path: Path,
+    option: str,
+    value: object,
+) -> None:
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "0.png"), scene.objects.image)
+    with pytest.raises(ArgumentError, match=option):
+        planarcal.Tracker(cal, str(folder), **{option: value})  # type: ignore[arg-type]
+    if option == "timeout_s":
+        with pytest.raises(ArgumentError, match=option):
+            planarcal.Camera(str(folder), timeout_s=value)  # type: ignore[arg-type]

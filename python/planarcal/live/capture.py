@@ -46,7 +46,6 @@ consumer: two threads reading it get alternate frames.
 
 from __future__ import annotations
 
-import math
 import os
 import threading
 from collections.abc import Callable, Iterator
@@ -57,6 +56,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal import arguments
 from planarcal.errors import ArgumentError, ArgumentTypeError, CameraError, ImageError
 from planarcal.live.capture_sources import (
     IMAGE_SUFFIXES,
@@ -79,6 +79,10 @@ Frame = NDArray[np.uint8]
 BACKEND_GRACE_S = 1.0
 """How much longer than ``timeout_s`` OpenCV's own timeouts are: the caller's guard fires
 first, and the backend then frees the stuck worker thread shortly after."""
+
+MAX_TIMEOUT_S = 1e6
+"""The longest ``timeout_s`` (11.6 days): OpenCV takes its timeouts in milliseconds as a
+32-bit int (2**31 ms is 24.8 days), and a wait much longer overflows threading's own limit."""
 
 _T = TypeVar("_T")
 
@@ -128,9 +132,12 @@ def _check_options(
     if (
         isinstance(timeout_s, bool)
         or not isinstance(timeout_s, int | float)
-        or not (math.isfinite(timeout_s) and timeout_s > 0)
+        or not (0 < arguments.real("timeout_s", timeout_s) <= MAX_TIMEOUT_S)
     ):
-        raise ArgumentError(f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
+        raise ArgumentError(
+            f"timeout_s must be a positive number of seconds, at most {MAX_TIMEOUT_S:g}, got "
+            f"{timeout_s!r}"
+        )
     return width, height, float(timeout_s)
 
 

@@ -57,6 +57,7 @@ import logging
 import math
 import os
 import queue
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -65,7 +66,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from planarcal import _core
+from planarcal import _core, arguments
 from planarcal.calib.calibration import Calibration
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, ImageError, StateError
 from planarcal.live.capture import Camera, Frame
@@ -275,12 +276,21 @@ class Tracker:
             calibration = Calibration.load(calibration)
         self.calibration = calibration
         for name, value in (("height_mm", height_mm), ("max_jump_mm", max_jump_mm)):
-            if not (isinstance(value, int | float) and math.isfinite(value)):
+            # arguments.real: 10**400 is not finite either (float() would overflow).
+            if not isinstance(value, int | float) or isinstance(value, bool):
                 raise ArgumentError(f"{name} must be a finite number, got {value!r}")
+            arguments.real(name, value)
         if max_jump_mm <= 0:
             raise ArgumentError(f"max_jump_mm must be > 0, got {max_jump_mm!r}")
-        if isinstance(max_missing, bool) or not isinstance(max_missing, int) or max_missing < 0:
-            raise ArgumentError(f"max_missing must be a whole number >= 0, got {max_missing!r}")
+        if (
+            isinstance(max_missing, bool)
+            or not isinstance(max_missing, int)
+            or not 0 <= max_missing <= sys.maxsize  # the core counts frames in a usize
+        ):
+            raise ArgumentError(
+                f"max_missing must be a whole number >= 0 and at most {sys.maxsize}, got "
+                f"{max_missing!r}"
+            )
         if max_frames is not None and (
             isinstance(max_frames, bool) or not isinstance(max_frames, int) or max_frames < 0
         ):
