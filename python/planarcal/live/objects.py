@@ -78,7 +78,7 @@ def detect_objects(
 
     * ``min_area_px`` / ``max_area_px``: outline area limits (default: from 1/5000 of the
       image up to a quarter of it) that drop specks and the table's own edges.
-    * ``blur_sigma``: the Gaussian blur before Canny, px.
+    * ``blur_sigma``: the Gaussian blur before Canny, px (0 to the image's larger side).
     * ``canny``: the two Canny thresholds; by default from the image's median grey level.
     * ``mask``: an array of the image's size; objects are kept only where it is non-zero.
     * ``exclude_polygons``: pixel polygons (e.g. the board's region, from
