@@ -129,6 +129,8 @@ INCONSISTENT: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ("pitch", lambda d: d["board"].update(pitch_mm=20.4), r"world_mm: world point 1 .* board"),
     ("cols and rows", lambda d: d["board"].update(cols=10, rows=14), r"not a dot of the board"),
     ("world scale", lambda d: d.update(world_scale=[1.02, 1.0]), r"scaled by \[1.02, 1.0\]"),
+    ("scale huge", lambda d: d.update(world_scale=[1e300, 1.0]), r"on the dot of another point"),
+    ("scale tiny", lambda d: d.update(world_scale=[5e-324, 1.0]), r"0 \(0, 0\) mm is not a dot"),
     ("image size cut", lambda d: d.update(image_size_px=[600, 1280]), r"outside the 600 x"),
     ("robot x a string", lambda d: d["robot_frame"]["robot_mm"][1].__setitem__(0, "250"), "mm"),
     (

@@ -395,16 +395,27 @@ def board_points_problem(
     n = len(nominal)
     if n <= len(dots) and np.all(np.abs(nominal - dots[:n]) <= tolerance):
         return None  # the first n dots in order: a detection's
-    distance, _ = cKDTree(dots).query(nominal)
+    if np.isfinite(dots).all() and np.isfinite(nominal).all():
+        distance, index = cKDTree(dots).query(nominal)
+    else:  # a scale or pitch that overflows: no point is a dot
+        distance, index = np.full(n, np.inf), np.arange(n)
     bad = np.flatnonzero(~(distance <= tolerance))
-    if not bad.size:
-        return None
-    k = int(bad[0])
     scale = "" if world_scale == (1.0, 1.0) else f" scaled by {list(world_scale)}"
-    return (
-        f"world point {k} ({world[k][0]:g}, {world[k][1]:g}) mm is not a dot of the board "
-        f"({board.describe()}{scale})"
-    )
+    if bad.size:
+        k = int(bad[0])
+        return (
+            f"world point {k} ({world[k][0]:g}, {world[k][1]:g}) mm is not a dot of the "
+            f"board ({board.describe()}{scale})"
+        )
+    # Each on its own dot: a scale of 1e300 would put them all on the first.
+    _, first = np.unique(index, return_index=True)
+    if len(first) < n:
+        k = int(np.setdiff1d(np.arange(n), first)[0])
+        return (
+            f"world point {k} ({world[k][0]:g}, {world[k][1]:g}) mm falls on the dot of "
+            f"another point of the board ({board.describe()}{scale})"
+        )
+    return None
 
 
 def image_points_problem(image: F64, size: tuple[int, int] | None) -> str | None:
