@@ -91,6 +91,8 @@ _core.measure_contours(grey, [chain[:1000]], 0.0, 1e12)
 fitted = _core.FittedPlane.fit(src, dst, "none", (4000.0, 4000.0))
 calls["measure_contours"] = lambda s, d: _core.measure_contours(grey, [chain], 0.0, 1e12)
 calls["FittedPlane.leave_one_out"] = lambda s, d: fitted.leave_one_out()
+calls["FittedPlane.predicted_loo_covariance"] = lambda s, d: fitted.predicted_loo_covariance()
+calls["part_samples"] = lambda s, d: _core.part_samples(s, 1.0)
 # Room for a tenth of the points' size beyond what the process holds: not for the work on
 # all of them (the robust search alone needs 80 bytes a point).
 limit = vm_bytes() + 16 * n
@@ -129,6 +131,8 @@ def test_ten_million_points_without_the_memory_are_a_memory_error() -> None:
             "estimate_homography refine",
             "measure_contours",
             "FittedPlane.leave_one_out",
+            "FittedPlane.predicted_loo_covariance",
+            "part_samples",
         ]
     ], run.stderr[-2000:]
 

@@ -46,16 +46,14 @@ pub const EDGE_SIGMA_PX: f64 = 0.12;
 pub const MAX_ANGLE_SIGMA_DEG: f64 = 2.0;
 
 /// The mapping's samples for `centroids` (n) and step `step` (px): 7 n points, in blocks of n
-/// in the order of `SAMPLE_OFFSETS` (all centres, then all +x, ...).
-pub fn part_samples(centroids: &[Point], step: f64) -> Vec<Point> {
-    SAMPLE_OFFSETS
-        .iter()
-        .flat_map(|o| {
-            centroids
-                .iter()
-                .map(move |c| [c[0] + step * o[0], c[1] + step * o[1]])
-        })
-        .collect()
+/// in the order of `SAMPLE_OFFSETS` (all centres, then all +x, ...). OutOfMemory when there
+/// is no room for them.
+pub fn part_samples(centroids: &[Point], step: f64) -> crate::Result<Vec<Point>> {
+    crate::alloc::collect(SAMPLE_OFFSETS.iter().flat_map(|o| {
+        centroids
+            .iter()
+            .map(move |c| [c[0] + step * o[0], c[1] + step * o[1]])
+    }))
 }
 
 /// The mapping near one part's image centroid, to second order.
@@ -316,7 +314,7 @@ mod tests {
 
     #[test]
     fn samples_are_in_blocks_of_parts() {
-        let s = part_samples(&[[10.0, 20.0], [30.0, 40.0]], 0.5);
+        let s = part_samples(&[[10.0, 20.0], [30.0, 40.0]], 0.5).unwrap();
         assert_eq!(s.len(), 14);
         assert_eq!(s[0], [10.0, 20.0]);
         assert_eq!(s[1], [30.0, 40.0]);
@@ -331,7 +329,7 @@ mod tests {
         let a = [[0.5, 0.1], [-0.2, 0.4]];
         let f = affine(a, [3.0, -7.0]);
         let c = [[10.0, 20.0], [300.0, 40.0]];
-        let mapped: Vec<Point> = part_samples(&c, 1.0).into_iter().map(&f).collect();
+        let mapped: Vec<Point> = part_samples(&c, 1.0).unwrap().into_iter().map(&f).collect();
         let m = rectangle(40.0, 10.0, 30.0);
         let poses = part_poses(&mapped, &[m, m], &[400.0, 400.0], 1.0).unwrap();
         for (pose, ci) in poses.iter().zip(c) {
@@ -396,7 +394,7 @@ mod tests {
     #[test]
     fn non_finite_samples_give_nan_not_a_panic() {
         let c = [[5.0, 5.0], [50.0, 5.0]];
-        let mut mapped = part_samples(&c, 1.0);
+        let mut mapped = part_samples(&c, 1.0).unwrap();
         mapped[2 * 2] = [f64::NAN, 1.0]; // the first part's -x sample has no image
         let m = rectangle(40.0, 10.0, 5.0);
         let poses = part_poses(&mapped, &[m, m], &[400.0; 2], 1.0).unwrap();

@@ -105,22 +105,23 @@ pub(crate) fn covariance_at(
 /// point its measured pixel maps to under a fit made without it, minus its true position.
 /// It is the fit-without-it's uncertainty at the point, (J^T J - J_i^T J_i)^-1 scaled by
 /// sigma^2, plus the point's own measurement noise sigma^2 mapped to the plane.
-pub fn predicted_loo_covariance(fit: &PlaneFit, world: &[Point]) -> Vec<Option<Matrix2<f64>>> {
+/// OutOfMemory when there is no room for them.
+pub fn predicted_loo_covariance(
+    fit: &PlaneFit,
+    world: &[Point],
+) -> crate::Result<Vec<Option<Matrix2<f64>>>> {
     let sigma2 = fit.cost / fit.dof.max(1) as f64;
     // J^T J over the free parameters, recovered from its inverse (kept by the fit).
     let free_jtj = invert_free(&fit.jtj_inv);
-    world
-        .iter()
-        .map(|&w| {
-            let mut p = fit.params.predict(w)?;
-            fit.free.mask(&mut p.d_theta);
-            let inv = p.d_world.try_inverse()?;
-            let jtj_i = free_jtj? - p.d_theta.transpose() * p.d_theta;
-            let without = invert_free(&jtj_i)?;
-            let b = inv * p.d_theta;
-            Some((b * without * b.transpose() + inv * inv.transpose()) * sigma2)
-        })
-        .collect()
+    crate::alloc::collect(world.iter().map(|&w| {
+        let mut p = fit.params.predict(w)?;
+        fit.free.mask(&mut p.d_theta);
+        let inv = p.d_world.try_inverse()?;
+        let jtj_i = free_jtj? - p.d_theta.transpose() * p.d_theta;
+        let without = invert_free(&jtj_i)?;
+        let b = inv * p.d_theta;
+        Some((b * without * b.transpose() + inv * inv.transpose()) * sigma2)
+    }))
 }
 
 /// The inverse of a symmetric matrix over the rows and columns that are not all zero (the
@@ -201,7 +202,7 @@ mod tests {
         assert!(centre.trace() < corner.trace() && corner.trace() < outside.trace());
         let with_pixel = world_covariance(&fit, [130.0, 90.0], 0.1).unwrap();
         assert!(with_pixel.trace() > centre.trace());
-        let loo = predicted_loo_covariance(&fit, &world);
+        let loo = predicted_loo_covariance(&fit, &world).unwrap();
         assert!(loo
             .iter()
             .all(|c| c.is_some_and(|c| c.trace() > centre.trace())));

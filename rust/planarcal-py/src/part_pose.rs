@@ -4,13 +4,13 @@
 
 use numpy::{PyArray1, PyArrayMethods};
 use planarcal_core::{
-    part_poses as core_part_poses, part_samples as core_part_samples, LocalMap, PartAxis,
-    SAMPLE_OFFSETS,
+    part_poses as core_part_poses, part_samples as core_part_samples, try_collect, LocalMap,
+    PartAxis, SAMPLE_OFFSETS,
 };
 use pyo3::prelude::*;
 
 use crate::convert::{f64_array, ArrayArg};
-use crate::errors::invalid;
+use crate::errors::{invalid, to_py};
 
 type Out<'py> = Bound<'py, PyAny>;
 
@@ -95,9 +95,10 @@ pub fn part_samples<'py>(
 ) -> PyResult<Out<'py>> {
     let c = rows_of(centroids_px, "centroids_px", None, &[2], "px")?;
     let step = checked_step(step_px)?;
-    let samples = core_part_samples(as_points(&c), step);
+    let samples = core_part_samples(as_points(&c), step).map_err(to_py)?;
     let n = samples.len();
-    array(py, samples.into_iter().flatten().collect(), &[n, 2])
+    let flat = try_collect(samples.into_iter().flatten()).map_err(to_py)?;
+    array(py, flat, &[n, 2])
 }
 
 /// part_poses(samples_mm, moments_px, areas_px, step_px)

@@ -356,13 +356,12 @@ impl FittedPlane {
                 "the fit has no residual degrees of freedom: use more points",
             ));
         }
-        let out: Vec<f64> = predicted_loo_covariance(self.plane_fit(), &self.world)
-            .into_iter()
-            .flat_map(|c| {
-                let c = c.unwrap_or(Matrix2::from_element(f64::NAN));
-                [c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)]]
-            })
-            .collect();
+        let covariances = predicted_loo_covariance(self.plane_fit(), &self.world).map_err(to_py)?;
+        let out = try_collect(covariances.into_iter().flat_map(|c| {
+            let c = c.unwrap_or(Matrix2::from_element(f64::NAN));
+            [c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)]]
+        }))
+        .map_err(to_py)?;
         array2(py, out, &[2, 2])
     }
 }
