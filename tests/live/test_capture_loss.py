@@ -317,6 +317,8 @@ def test_a_stream_whose_server_closes_is_closed_and_reopened_with_back_off(
         caplog.text.count("camera lost: ") == 2 and "reopening in 0.1 s (attempt 1)" in caplog.text
     )
     assert caplog.text.count("open again after") == 2
+    # The tracker reopens the camera itself: its warnings do not tell the user to.
+    assert "open a new one" not in caplog.text
 
 
 class Stderr:

@@ -76,6 +76,10 @@ __all__ = ["BACKEND_GRACE_S", "IMAGE_SUFFIXES", "Camera", "Frame"]
 Frame = NDArray[np.uint8]
 """A frame: H x W x 3 BGR, or H x W grey, uint8."""
 
+# What a caller of Camera.read() is told to do after a loss; the Tracker, which reopens the
+# camera itself, leaves it out of its own warnings.
+CLOSED_ADVICE = " The Camera is now closed: open a new one to try again"
+
 BACKEND_GRACE_S = 1.0
 """How much longer than ``timeout_s`` OpenCV's own timeouts are: the caller's guard fires
 first, and the backend then frees the stuck worker thread shortly after."""
@@ -392,7 +396,7 @@ class Camera:
             raise CameraError(
                 f"{self._label} stopped delivering after {self._frames_read} frames "
                 "(unplugged, connection lost, or the stream ended). Check the cable, "
-                "power or network. The Camera is now closed: open a new one to try again"
+                "power or network." + CLOSED_ADVICE
             )
         frame, where = got
         if (frame.shape[1], frame.shape[0]) != self._resolution:

@@ -69,7 +69,7 @@ from numpy.typing import NDArray
 from planarcal import _core, arguments
 from planarcal.calib.calibration import Calibration
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, ImageError, StateError
-from planarcal.live.capture import Camera, Frame
+from planarcal.live.capture import CLOSED_ADVICE, Camera, Frame
 from planarcal.live.capture_sources import file_url_path
 from planarcal.live.local_map import STEP_PX
 from planarcal.live.objects import _detect, detect_objects
@@ -604,14 +604,15 @@ class Tracker:
         """Counts and reports a camera or stream that stopped delivering (it is closed)."""
         now = time.monotonic()
         self.stats.camera_lost += 1
-        self._down_since, self._down_reason = now, str(error)
+        reason = str(error).removesuffix(CLOSED_ADVICE)  # the tracker reopens it itself
+        self._down_since, self._down_reason = now, reason
         # A camera that stayed up a while starts the back-off afresh; one that fails again
         # soon after it was reopened waits longer each time (no tight open-fail cycle).
         if now - self._opened_at >= REOPEN_MAX_S:
             self._delay = REOPEN_FIRST_S
         elif self.stats.camera_lost > 1:
             self._delay = min(2 * self._delay, REOPEN_MAX_S)
-        _log.warning("camera lost: %s; reopening in %.1f s (attempt 1)", error, self._delay)
+        _log.warning("camera lost: %s; reopening in %.1f s (attempt 1)", reason, self._delay)
 
     def _reopen(self) -> Camera | None:
         """Reopens the source with exponential back-off; None if stopped, out of time, or not
