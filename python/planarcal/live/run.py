@@ -360,4 +360,8 @@ def main(args: argparse.Namespace) -> int:
     if lost is not None:
         print(f"planarcal run: error: {lost}", file=sys.stderr)
         return 1
+    if received and received[0] == "SIGINT":
+        # The run ended cleanly, but a shell or a supervisor reads 130 as "stopped by Ctrl-C",
+        # as for every other command.
+        return 130
     return 0
