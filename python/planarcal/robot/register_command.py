@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from planarcal.calib.calibration import Calibration
+from planarcal.commands import positive
 from planarcal.robot.handedness import HANDEDNESS
 from planarcal.robot.registration import RobotFrame
 from planarcal.robot.summary import USABLE_MM, judged_mm, quality
@@ -50,7 +51,7 @@ def add_parser(subcommands: Any) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--outlier-mm",
-        type=float,
+        type=positive,
         default=None,
         metavar="MM",
         help="leave-one-out error above which a touch is named an outlier (default: 1 mm or "
