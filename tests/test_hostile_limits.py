@@ -93,6 +93,9 @@ calls["measure_contours"] = lambda s, d: _core.measure_contours(grey, [chain], 0
 calls["FittedPlane.leave_one_out"] = lambda s, d: fitted.leave_one_out()
 calls["FittedPlane.predicted_loo_covariance"] = lambda s, d: fitted.predicted_loo_covariance()
 calls["part_samples"] = lambda s, d: _core.part_samples(s, 1.0)
+tracks = _core.Tracks(5.0, 3)
+tracks.update(src[:3])
+calls["Tracks.update"] = lambda s, d: tracks.update(s)
 # Room for a tenth of the points' size beyond what the process holds: not for the work on
 # all of them (the robust search alone needs 80 bytes a point).
 limit = vm_bytes() + 16 * n
@@ -103,6 +106,8 @@ for name, call in calls.items():
         print(name, "returned", flush=True)
     except MemoryError:
         print(name, "MemoryError", flush=True)
+# The tracks are as they were before the frame that failed.
+print("tracks", len(tracks), tracks.update(src[:3]).tolist())
 """
 
 
@@ -133,8 +138,9 @@ def test_ten_million_points_without_the_memory_are_a_memory_error() -> None:
             "FittedPlane.leave_one_out",
             "FittedPlane.predicted_loo_covariance",
             "part_samples",
+            "Tracks.update",
         ]
-    ], run.stderr[-2000:]
+    ] + ["tracks 3 [1, 2, 3]"], run.stderr[-2000:]
 
 
 @pytest.mark.parametrize("huge", [HUGE, -HUGE], ids=["10**400", "-10**400"])

@@ -7,6 +7,8 @@
 
 use std::collections::HashMap;
 
+use crate::alloc;
+use crate::error::Result;
 use crate::Point;
 
 /// The live tracks and the association's limits.
@@ -35,14 +37,19 @@ impl Tracks {
     }
 
     /// The IDs of one frame's objects at `positions` (one per object, in order); the tracks
-    /// then move to this frame's positions, and those not seen age.
-    pub fn update(&mut self, positions: &[Point]) -> Vec<u64> {
+    /// then move to this frame's positions, and those not seen age. OutOfMemory, with the
+    /// tracks as they were, when the frame's buffers cannot be allocated.
+    pub fn update(&mut self, positions: &[Point]) -> Result<Vec<u64>> {
         let (n, m) = (positions.len(), self.ids.len());
-        let mut pairs = self.pairs_within_reach(positions);
+        let mut pairs = self.pairs_within_reach(positions)?;
         // Closest first; equal distances in object, then track, order.
         pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let mut ids = vec![0u64; n];
-        let mut matched = vec![false; m];
+        let mut ids = alloc::filled(0u64, n)?;
+        let mut matched = alloc::filled(false, m)?;
+        // Room for this frame's tracks before any is changed: a failure leaves them as they were.
+        alloc::reserve(&mut self.ids, n)?;
+        alloc::reserve(&mut self.positions, n)?;
+        alloc::reserve(&mut self.missed, n)?;
         let mut left = n.min(m);
         for (_, i, j) in pairs {
             if left == 0 {
@@ -78,21 +85,26 @@ impl Tracks {
         self.ids.extend_from_slice(&ids);
         self.positions.extend_from_slice(positions);
         self.missed.resize(self.ids.len(), 0);
-        ids
+        Ok(ids)
     }
 
     /// Every (distance, object, track) within max_jump. The tracks are binned in cells of
     /// max_jump, so each object is compared with those of its cell and the 8 round it: a
     /// frame of 10^5 objects takes milliseconds, where comparing every pair took minutes.
-    fn pairs_within_reach(&self, positions: &[Point]) -> Vec<(f64, usize, usize)> {
+    fn pairs_within_reach(&self, positions: &[Point]) -> Result<Vec<(f64, usize, usize)>> {
         let mut pairs = Vec::new();
-        let mut consider = |i: usize, p: &Point, j: usize| {
+        let mut consider = |i: usize, p: &Point, j: usize| -> Result<()> {
             let q = &self.positions[j];
             let d = (p[0] - q[0]).hypot(p[1] - q[1]);
             // NaN compares false: never matched.
             if d <= self.max_jump {
+                if pairs.len() == pairs.capacity() {
+                    let more = pairs.len().max(16);
+                    alloc::reserve(&mut pairs, more)?;
+                }
                 pairs.push((d, i, j));
             }
+            Ok(())
         };
         // A cell a hair wider than the reach: two points within it are in neighbouring cells
         // whatever the rounding of the division.
@@ -100,17 +112,21 @@ impl Tracks {
         if !(cell > 0.0 && cell.is_finite()) {
             for (i, p) in positions.iter().enumerate() {
                 for j in 0..self.positions.len() {
-                    consider(i, p, j);
+                    consider(i, p, j)?;
                 }
             }
-            return pairs;
+            return Ok(pairs);
         }
         // Saturating casts: far-off coordinates share the edge cells, still compared exactly.
         let bin = |p: &Point| ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
         let finite = |p: &Point| p[0].is_finite() && p[1].is_finite();
         let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        grid.try_reserve(self.positions.len())
+            .map_err(|_| alloc::out_of_memory::<((i64, i64), Vec<usize>)>(self.positions.len()))?;
         for (j, q) in self.positions.iter().enumerate().filter(|(_, q)| finite(q)) {
-            grid.entry(bin(q)).or_default().push(j);
+            let bucket = grid.entry(bin(q)).or_default();
+            alloc::reserve(bucket, 1)?;
+            bucket.push(j);
         }
         for (i, p) in positions.iter().enumerate().filter(|(_, p)| finite(p)) {
             let (cx, cy) = bin(p);
@@ -124,11 +140,11 @@ impl Tracks {
             cells.dedup();
             for key in cells {
                 for &j in grid.get(&key).into_iter().flatten() {
-                    consider(i, p, j);
+                    consider(i, p, j)?;
                 }
             }
         }
-        pairs
+        Ok(pairs)
     }
 
     /// The live tracks: (ID, last position), in no particular order.
@@ -154,26 +170,26 @@ mod tests {
     #[test]
     fn objects_keep_their_ids_as_they_move() {
         let mut t = Tracks::new(5.0, 2);
-        assert_eq!(t.update(&[[0.0, 0.0], [10.0, 0.0]]), vec![1, 2]);
+        assert_eq!(t.update(&[[0.0, 0.0], [10.0, 0.0]]).unwrap(), vec![1, 2]);
         // Listed the other way round, each a little further on.
-        assert_eq!(t.update(&[[11.0, 1.0], [1.0, 1.0]]), vec![2, 1]);
+        assert_eq!(t.update(&[[11.0, 1.0], [1.0, 1.0]]).unwrap(), vec![2, 1]);
         // One jumps too far: a new track; the old one lives on unseen.
-        assert_eq!(t.update(&[[30.0, 0.0], [2.0, 1.0]]), vec![3, 1]);
+        assert_eq!(t.update(&[[30.0, 0.0], [2.0, 1.0]]).unwrap(), vec![3, 1]);
         assert_eq!(t.len(), 3);
     }
 
     #[test]
     fn the_closest_pair_wins_and_unseen_tracks_end() {
         let mut t = Tracks::new(5.0, 1);
-        t.update(&[[0.0, 0.0]]);
+        t.update(&[[0.0, 0.0]]).unwrap();
         // Two candidates for track 1: the nearer takes it.
-        assert_eq!(t.update(&[[3.0, 0.0], [1.0, 0.0]]), vec![2, 1]);
-        t.update(&[]);
+        assert_eq!(t.update(&[[3.0, 0.0], [1.0, 0.0]]).unwrap(), vec![2, 1]);
+        t.update(&[]).unwrap();
         assert_eq!(t.len(), 2);
-        t.update(&[]);
+        t.update(&[]).unwrap();
         assert!(t.is_empty());
         // An object that was never matched cannot take an ended track's ID.
-        assert_eq!(t.update(&[[1.0, 0.0]]), vec![3]);
+        assert_eq!(t.update(&[[1.0, 0.0]]).unwrap(), vec![3]);
     }
 
     #[test]
@@ -197,8 +213,8 @@ mod tests {
             let (a, b) = (frame(40), frame(45));
             let mut grid = Tracks::new(jump, 3);
             let mut brute = grid.clone();
-            grid.update(&a);
-            brute.update(&a);
+            grid.update(&a).unwrap();
+            brute.update(&a).unwrap();
             let mut want = Vec::new();
             for (i, p) in b.iter().enumerate() {
                 for (j, q) in brute.positions.iter().enumerate() {
@@ -208,7 +224,7 @@ mod tests {
                     }
                 }
             }
-            let mut got = grid.pairs_within_reach(&b);
+            let mut got = grid.pairs_within_reach(&b).unwrap();
             let key = |x: &(f64, usize, usize)| (x.1, x.2);
             got.sort_unstable_by_key(key);
             want.sort_unstable_by_key(key);
@@ -218,15 +234,15 @@ mod tests {
             .map(|k| [(k % 400) as f64 * 10.0, (k / 400) as f64 * 10.0])
             .collect();
         let mut t = Tracks::new(5.0, 2);
-        let first = t.update(&many);
-        assert_eq!(t.update(&many), first);
+        let first = t.update(&many).unwrap();
+        assert_eq!(t.update(&many).unwrap(), first);
     }
 
     #[test]
     fn non_finite_positions_start_their_own_tracks() {
         let mut t = Tracks::new(5.0, 3);
-        t.update(&[[0.0, 0.0]]);
-        assert_eq!(t.update(&[[f64::NAN, 0.0]]), vec![2]);
+        t.update(&[[0.0, 0.0]]).unwrap();
+        assert_eq!(t.update(&[[f64::NAN, 0.0]]).unwrap(), vec![2]);
         let live: Vec<u64> = t.live().map(|(id, _)| id).collect();
         assert_eq!(live, vec![1, 2]);
     }

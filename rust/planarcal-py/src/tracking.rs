@@ -2,11 +2,11 @@
 //! frame's JSON line (planarcal_core::FrameObjects).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
-use planarcal_core::{FrameObjects, Tracks as CoreTracks};
+use planarcal_core::{try_collect, FrameObjects, Tracks as CoreTracks};
 use pyo3::prelude::*;
 
 use crate::convert::{f64_array, points2};
-use crate::errors::invalid;
+use crate::errors::{invalid, to_py};
 
 /// Tracks(max_jump, max_missing)
 /// --
@@ -45,8 +45,9 @@ impl Tracks {
         positions: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let pts = points2(positions, "positions")?;
-        let ids = self.inner.update(pts.as_points());
-        Ok(PyArray1::from_iter(py, ids.into_iter().map(|id| id as i64)))
+        let ids = self.inner.update(pts.as_points()).map_err(to_py)?;
+        let ids = try_collect(ids.into_iter().map(|id| id as i64)).map_err(to_py)?;
+        Ok(PyArray1::from_vec(py, ids))
     }
 
     /// live()
