@@ -221,6 +221,14 @@ def test_an_old_file_keeps_its_checks(
         Calibration.load(_write(tmp_path / "old.json", data))
 
 
+def test_a_lens_is_the_image_size_s(tmp_path: Path) -> None:
+    # A radial lens's unit is the image's half-diagonal: another image size is another lens.
+    data = json.loads(V2_FILE.read_text())
+    data["image_size_px"] = [1281, 720]
+    with pytest.raises(CalibrationFileError, match=r"not the frame of image_size_px \[1281, 720\]"):
+        Calibration.load(_write(tmp_path / "old.json", data))
+
+
 def test_a_new_file_read_as_an_old_version_is_refused(
     saved: dict[str, Any], tmp_path: Path
 ) -> None:

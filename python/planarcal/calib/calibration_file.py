@@ -499,7 +499,8 @@ def check_residuals(errors_px: F64, stored: StoredResiduals, source: str) -> Non
         if not abs(got - want) <= RESIDUAL_TOLERANCE_PX + RESIDUAL_TOLERANCE_REL * want:
             worst = int(np.argmax(errors_px))
             raise CalibrationFileError(
-                f"{source}: its homography, lens and points do not belong together: they "
+                f"{source}: its homography, lens (or intrinsics) and points do not belong "
+                "together: they "
                 f"leave a {name} reprojection error of {got:.6g} px where its summary records "
                 f"{want:.6g} px (summary.{name.lower()}_px), the worst at point {worst} "
                 f"({errors_px[worst]:.6g} px); the file was edited or is corrupt"
@@ -1035,7 +1036,10 @@ def _fit_from_dict(
     try:
         plane = plane_at(h, world, image, size, lens, radial, intrinsics)
     except (ArgumentError, IntrinsicsError, LensModelError, HomographyError) as e:
-        raise CalibrationFileError(f"{source}: {e}") from None
+        raise CalibrationFileError(
+            f"{source}: its homography, lens (or intrinsics) and points cannot be used "
+            f"together: {e}"
+        ) from None
     return PlaneFit(plane, h, lens, candidates, note), intrinsics, world_scale
 
 
@@ -1065,10 +1069,19 @@ def _radial_lens(lens_data: Any, lens: str, size: tuple[int, int] | None, source
     # The lens frame is the image's: its unit the half-diagonal, its centre the image's
     # unless the model fits it (k1k2c).
     w, h = size
-    _agree_number(values["scale_px"], 0.5 * math.hypot(w, h), "lens.scale_px", source)
+    frame = [0.5 * math.hypot(w, h)]
+    stored = [values["scale_px"]]
     if lens != "k1k2c":
-        for i, c in enumerate(((w - 1.0) / 2.0, (h - 1.0) / 2.0)):
-            _agree_number(float(centre[i]), c, f"lens.centre_px[{i}]", source)
+        frame += [(w - 1.0) / 2.0, (h - 1.0) / 2.0]
+        stored += [float(centre[0]), float(centre[1])]
+    for got, want in zip(stored, frame, strict=True):
+        if not abs(got - want) <= DERIVED_TOLERANCE_REL * want:
+            raise CalibrationFileError(
+                f"{source}: lens.scale_px {stored[0]!r} and lens.centre_px {list(centre)} are "
+                f"not the frame of image_size_px {[w, h]} (its half-diagonal {frame[0]!r}"
+                + ("" if len(frame) == 1 else f", its centre {frame[1:]}")
+                + "): the image size or the lens was edited"
+            )
     try:
         return RadialLens(
             (float(centre[0]), float(centre[1])), values["scale_px"], values["k1"], values["k2"]
