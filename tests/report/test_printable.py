@@ -10,6 +10,7 @@ are checked dot by dot, and `planarcal board` is run in process, its files parse
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import shutil
@@ -333,7 +334,7 @@ def test_svg_is_exact(tmp_path: Path, board: CircleGridBoard) -> None:
     # The text says what the board is and how to print it.
     text = all_text(root)
     assert f"{board.cols} x {board.rows} dots" in text
-    assert f"dots {board.diameter:g} mm, pitch {board.pitch:g} mm" in text
+    assert f"dots {board.dots_mm():g} mm, pitch {board.pitch:g} mm" in text
     assert f"page {page} {layout.orientation} ({w:g} x {h:g} mm)" in text
     assert "100%" in text and "ACTUAL SIZE" in text and "100 mm" in text
     assert ("origin: the" in text) == board.origin_marker
@@ -424,12 +425,17 @@ def test_marker_as_large_as_the_neighbour_distance(tmp_path: Path, grid: Layout)
     assert f"origin: the {spacing:.10g} mm dot" in info_text(root)
 
 
-def test_unknown_diameter_is_refused(tmp_path: Path) -> None:
-    unknown = CircleGridBoard(cols=5, rows=4, pitch=20.0, diameter=None)
-    for name in ("board.svg", "board.pdf"):
-        with pytest.raises(BoardError, match=r"diameter is unknown.*--diameter"):
-            write_board(unknown, tmp_path / name)
-    assert list(tmp_path.iterdir()) == []
+def test_unstated_diameter_prints_dots_half_the_neighbour_distance(tmp_path: Path) -> None:
+    # No diameter is no statement: the board prints as `planarcal board` would without
+    # --diameter, dots as wide as the gaps between them.
+    unstated = CircleGridBoard(cols=5, rows=4, pitch=24.0)
+    stated = dataclasses.replace(unstated, diameter=12.0)
+    write_board(unstated, tmp_path / "unstated.svg")
+    write_board(stated, tmp_path / "stated.svg")
+    radii = [
+        svg_circles(ET.parse(tmp_path / n).getroot())[1] for n in ("unstated.svg", "stated.svg")
+    ]
+    assert np.allclose(radii[0], 6.0) and np.array_equal(radii[0], radii[1])
 
 
 # --------------------------------------------------------------------------- PDF

@@ -156,7 +156,6 @@ def test_dots_in_view_counts_the_enlarged_dots() -> None:
         (lambda: render_scene(enlarged_dots={3: 8.0}), "at least the board's dots"),
         (lambda: render_scene(enlarged_dots={"3": 12.0}), "not a dot index"),  # type: ignore[dict-item]
         (lambda: render_scene(enlarged_dots=[12.0]), "must map"),  # type: ignore[arg-type]
-        (lambda: render_scene(board=CircleGridBoard(diameter=None)), "diameter is unknown"),
     ],
 )
 def test_bad_boards_raise_board_errors(make: Callable[[], object], words: str) -> None:

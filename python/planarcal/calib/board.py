@@ -39,18 +39,23 @@ LAYOUTS: tuple[Layout, ...] = ("symmetric", "asymmetric")
 class CircleGridBoard:
     """A grid of `cols` x `rows` dark dots of `diameter` mm, `pitch` mm apart.
 
-    The defaults are the paper's board (14 x 10 dots, 10 mm, 20 mm apart). With
+    The defaults are the paper's board (14 x 10 dots, 20 mm apart, 10 mm across). With
     ``origin_marker=True`` the origin circle is printed larger (``marker_diameter``, by default
     1.5 times the others, at most the distance to its nearest neighbour), as on common
-    industrial boards: it fixes the board's orientation. ``diameter=None`` leaves the dots'
-    size unknown: detection measures it from the image (a board to print needs it).
+    industrial boards: it fixes the board's orientation. ``diameter`` is what the user states:
+    detection measures the dots and refuses a stated size the image contradicts
+    (BoardMismatchError). Left out (None, the default) it is not a statement: detection
+    measures it without judging, and printing and rendering draw dots half the distance
+    between neighbouring dots (the paper's 10 mm at 20 mm, what ``planarcal board`` prints).
     ``layout`` is ``"symmetric"`` or ``"asymmetric"`` (see the module's docstring).
     """
 
     cols: int = 14
     rows: int = 10
     pitch: float = 20.0
-    diameter: float | None = 10.0
+    # None, not the paper's 10 mm: a default is no statement, so a board described in code
+    # without its dots' size is never refused for the size of dots it did not give.
+    diameter: float | None = None
     origin_marker: bool = False
     marker_diameter: float | None = None
     layout: Layout = "symmetric"
@@ -111,12 +116,10 @@ class CircleGridBoard:
         return float(self.pitch)
 
     def dots_mm(self) -> float:
-        """The dots' diameter in mm; BoardError when the board leaves it unknown."""
+        """The dots' diameter in mm to print or render: the stated one, else half the
+        distance between neighbouring dots (``planarcal board``'s default)."""
         if self.diameter is None:
-            raise BoardError(
-                "the board's dot diameter is unknown (diameter=None): give it (--diameter) "
-                "to print or render the board"
-            )
+            return 0.5 * self.neighbour_distance
         return float(self.diameter)
 
     @property

@@ -99,10 +99,10 @@ def write_board(
     Raises BoardError when the board, with its axis marks, check bar and text, does not fit
     inside the margins (in the orientation asked for, or in either for ``"auto"``): the
     message gives the dot field's extent, the page's usable size, the smallest standard
-    page that fits and the smaller board that fits this page (``smaller_board``), and when
-    the board leaves its dots' diameter unknown (``diameter=None``): a printed dot needs a
-    size. An unwritable path raises OSError naming it; the file is written atomically (see
-    the module's docstring).
+    page that fits and the smaller board that fits this page (``smaller_board``). A board
+    that states no diameter (``diameter=None``) is printed with dots half the distance
+    between neighbouring dots (``CircleGridBoard.dots_mm``). An unwritable path raises
+    OSError naming it; the file is written atomically (see the module's docstring).
     """
     target = Path(os.fspath(path))
     suffix = target.suffix.lower()
@@ -114,7 +114,6 @@ def write_board(
     fmt: Literal["svg", "pdf"] = "svg" if suffix == ".svg" else "pdf"
     label, size, margin = _checked_page(page, orientation, margin_mm)
 
-    board.dots_mm()  # BoardError when the dots' size is unknown: it cannot be printed
     drawing = fit(board, label, size, orientation, margin)
     if drawing is None:
         raise BoardError(refusal(board, label, size, orientation, margin))
@@ -180,7 +179,6 @@ def page_refusal(
     (``smaller_board``) written by ``offer``: ``planarcal board`` offers it as a command
     line."""
     label, size, margin = _checked_page(page, orientation, margin_mm)
-    board.dots_mm()  # BoardError when the dots' size is unknown: it cannot be laid out
     if fit(board, label, size, orientation, margin) is not None:
         return None
     return refusal(board, label, size, orientation, margin, offer)
