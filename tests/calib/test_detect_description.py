@@ -206,3 +206,16 @@ def test_the_detection_figure_gives_the_measured_size(
         "dots 12 mm across at the stated pitch of 20 mm (0.60 of the pitch)" in line
         for line in label
     ), label
+
+
+def test_a_board_described_without_its_diameter_is_measured_not_refused() -> None:
+    # Dots of 12 mm, 20 mm apart (0.6 of the pitch), described in code as a user would who
+    # never measured them: the default states no size, so nothing is refused.
+    truth = CircleGridBoard(7, 5, 20.0, 12.0)
+    camera = CameraModel(1280, 960, 1100.0)
+    pose = PlanePose(600.0, tilt_deg=15.0, look_at_mm=(60.0, 40.0))
+    image = render_scene(camera, pose, board=truth, blur_sigma_px=0.8).image
+    det = detect_board(image, CircleGridBoard(7, 5, 20.0))
+    assert det.sizes is not None and det.sizes.diameter_mm == pytest.approx(12.0, rel=0.05)
+    with pytest.raises(BoardMismatchError):
+        detect_board(image, CircleGridBoard(7, 5, 20.0, 10.0))  # 10 mm stated: refused
