@@ -46,7 +46,8 @@ MIN_ANISOTROPY: float
 EDGE_SIGMA_PX: float
 MAX_ANGLE_SIGMA_DEG: float
 
-# The exceptions the bindings raise are planarcal.errors' classes (pyo3::import_exception!).
+# The exceptions the bindings raise are planarcal.errors' classes (pyo3::import_exception!),
+# and MemoryError when a buffer that grows with the input cannot be allocated.
 
 @final
 class RadialLens:
