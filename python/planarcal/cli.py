@@ -1,4 +1,5 @@
-"""The `planarcal` command line: board, intrinsics, calibrate, register, locate, run, demo.
+"""The `planarcal` command line: board, intrinsics, calibrate, register, check, locate, run,
+demo.
 
 Exit status: 0 on success; 1 when the job fails on its data (no board in view, a file that
 cannot be read or written); 2 for a malformed command line (an unknown option, a value the
@@ -28,6 +29,7 @@ COMMANDS = {
     "calibrate": "calibrate from an image of the board",
     "intrinsics": "estimate camera intrinsics from several board images",
     "register": "register the calibrated board to a robot's base frame from touch points",
+    "check": "check a calibration file (or keep a deliberate edit of it: --accept-edits)",
     "locate": "locate objects in mm with a calibration",
     "run": "the production loop: objects in mm, frame after frame",
     "demo": "the whole pipeline on a rendered scene of the paper's setup",
@@ -56,6 +58,10 @@ def _command_module(name: str) -> ModuleType:
         from planarcal.robot import register_command  # noqa: PLC0415 (loaded when the command is used)
 
         return register_command
+    if name == "check":
+        from planarcal.commands import check  # noqa: PLC0415 (loaded when the command is used)
+
+        return check
     if name == "locate":
         from planarcal.commands import locate  # noqa: PLC0415 (loaded when the command is used)
 

@@ -21,6 +21,7 @@ from planarcal.calib.calibration import Calibration
 from planarcal.calib.calibration_file import FILE_VERSION, field_digests
 from planarcal.errors import CalibrationFileError
 from planarcal.synth import paper_data
+from test_cli import _run
 
 WORLD = np.array(paper_data.WORLD_MM)
 IMAGE = np.array(paper_data.IMAGE_PX)
@@ -175,7 +176,7 @@ def test_the_refusal_says_how_to_change_a_file(saved: dict[str, Any], tmp_path: 
     with pytest.raises(
         CalibrationFileError,
         match=r"image_size_px is not what the file was saved with \(its digest does not "
-        r"match\): edited by hand\? .*trust_edits=True",
+        r"match\): edited by hand\? .*planarcal check .* --accept-edits",
     ):
         Calibration.load(_write(tmp_path / "edited.json", data))
 
@@ -427,3 +428,33 @@ def test_every_leaf_edited_and_trusted_loads_only_what_can_be_saved(
             again = Calibration.load(cal.save(tmp_path / "again.json"))
             assert _meaning(again) == _meaning(cal), (where, value)
     assert loaded_any > 0
+
+
+def test_planarcal_check_says_what_a_file_holds_and_keeps_a_deliberate_edit(
+    saved: dict[str, Any], tmp_path: Path
+) -> None:
+    path = _write(tmp_path / "calib.json", saved)
+    good = _run("check", path)
+    assert good.returncode == 0, good.stderr
+    assert "consistent and as saved" in good.stdout
+    assert "frame: the robot's (rigid registration from 5 touches" in good.stdout
+    # The registration removed by hand (the robot moved): refused as it is, kept when the
+    # edit is accepted.
+    edited = copy.deepcopy(saved)
+    edited["robot_frame"] = None
+    _write(path, edited)
+    refused = _run("check", path)
+    assert refused.returncode == 1 and "edited by hand?" in refused.stderr
+    assert f"planarcal check '{path}' --accept-edits" in refused.stderr
+    kept = _run("check", path, "--accept-edits")
+    assert kept.returncode == 0, kept.stderr
+    assert "frame: the board's" in kept.stdout and "new digest" in kept.stdout
+    assert Calibration.load(path).robot_frame is None
+    # An edit the other values contradict is refused even with --accept-edits.
+    contradicted = copy.deepcopy(saved)
+    contradicted["board"]["pitch_mm"] = 20.4
+    _write(path, contradicted)
+    before = path.read_bytes()
+    still = _run("check", path, "--accept-edits")
+    assert still.returncode == 1 and "pitch" in still.stderr and "Traceback" not in still.stderr
+    assert path.read_bytes() == before

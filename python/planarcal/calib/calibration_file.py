@@ -95,9 +95,7 @@ ALWAYS = ("solver", "refine", "homography_world_mm_to_image_px", "points")
 
 EDIT_HINT = (
     "a calibration is changed by planarcal (calibrate or register again); to keep an edit "
-    'made on purpose, load it once trusting the edit and save it: python -c "import planarcal '
-    'as pc; pc.Calibration.load({path}, trust_edits=True).save({path})" (README: Calibration '
-    "files)"
+    "made on purpose: planarcal check {path} --accept-edits (README: Calibration files)"
 )
 """What a refusal by the digest adds: how to change a file (``{path}``: the file's)."""
 
@@ -142,7 +140,7 @@ points are the dots' positions times world_scale: rounding is some 1e-16)."""
 INTRINSICS_KEYS = ("camera_matrix", "cameraMatrix", "K")
 INTRINSICS_HINT = (
     "looks like camera intrinsics ({kind}), not a planarcal calibration: pass it with "
-    "--intrinsics (CameraIntrinsics.load_yaml); a calibration is the JSON file `planarcal "
+    "--intrinsics; a calibration is the JSON file `planarcal "
     "calibrate` writes"
 )
 _INTRINSICS_NODE = re.compile(
