@@ -261,3 +261,41 @@ def test_tracker_options_beyond_their_range_are_argument_errors(
     if option == "timeout_s":
         with pytest.raises(ArgumentError, match=option):
             planarcal.Camera(str(folder), timeout_s=value)  # type: ignore[arg-type]
+
+
+NO_THREAD_TO_SPAWN = """
+import resource, threading
+import numpy as np, planarcal
+
+def vm_bytes():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmSize:"):
+            return int(line.split()[1]) * 1024
+
+rng = np.random.default_rng(0)
+src = rng.uniform(0, 100, (60, 2))
+problems = [(src, src * 2.0 + 3.0)] * 4
+planarcal.estimate_homography_robust_batch(problems, threshold=1.0)  # the pool, started
+# Room for the small problems, not for a thread's stack.
+limit = vm_bytes() + 2**20
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+try:
+    threading.Thread(target=print).start()
+except RuntimeError:
+    print("no thread")
+print([r.n_inliers for r in planarcal.estimate_homography_robust_batch(problems, threshold=1.0)])
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
+def test_a_batch_without_a_thread_to_spawn_runs_on_the_callers() -> None:
+    """The batch's watcher thread could not be spawned: its problems are solved one by one on
+    the calling thread (std's spawn() panicked)."""
+    run = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(NO_THREAD_TO_SPAWN)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.splitlines() == ["no thread", "[60, 60, 60, 60]"], run.stderr[-2000:]

@@ -319,12 +319,20 @@ pub fn estimate_robust_batch_interruptible(
         |&(s, d): &(&[Point], &[Point])| estimate_robust_interruptible(s, d, &serial, &cancel);
     std::thread::scope(|scope| {
         let (done, finished) = std::sync::mpsc::channel();
-        let workers = scope.spawn(move || {
+        let spawned = std::thread::Builder::new().spawn_scoped(scope, move || {
             let results: Vec<_> = problems.par_iter().map(run).collect();
             // The receiver waits until the results are ready; it cannot be gone.
             let _ = done.send(());
             results
         });
+        // No thread to be had (out of memory, or a process limit): the problems one by one
+        // on this thread, rather than `spawn`'s panic.
+        let Ok(workers) = spawned else {
+            return problems
+                .iter()
+                .map(|&(s, d)| estimate_robust_interruptible(s, d, &serial, stop))
+                .collect();
+        };
         while let Err(RecvTimeoutError::Timeout) = finished.recv_timeout(BATCH_POLL) {
             if stop() {
                 cancelled.store(true, Ordering::Relaxed);
