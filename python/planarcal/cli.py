@@ -15,6 +15,7 @@ command is parsed (its own help included) or run.
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -39,42 +40,23 @@ COMMANDS = {
 INTERRUPTED = 130
 
 
+# Where each command's arguments and work live (``add_arguments``/``add_parser`` and ``main``).
+_MODULES = {
+    "board": "planarcal.commands.board",
+    "calibrate": "planarcal.commands.calibrate",
+    "intrinsics": "planarcal.commands.intrinsics",
+    "register": "planarcal.robot.register_command",
+    "check": "planarcal.commands.check",
+    "locate": "planarcal.commands.locate",
+    "run": "planarcal.commands.run",
+    "demo": "planarcal.commands.demo",
+}
+
+
 def _command_module(name: str) -> ModuleType:
     """The module of the command `name`, imported now: each loads what its command needs
     (numpy, OpenCV, SciPy, the core), which the top-level parser must not."""
-    if name == "board":
-        from planarcal.commands import board  # noqa: PLC0415 (loaded when the command is used)
-
-        return board
-    if name == "calibrate":
-        from planarcal.commands import calibrate  # noqa: PLC0415 (loaded when the command is used)
-
-        return calibrate
-    if name == "intrinsics":
-        from planarcal.commands import intrinsics  # noqa: PLC0415 (loaded when the command is used)
-
-        return intrinsics
-    if name == "register":
-        from planarcal.robot import register_command  # noqa: PLC0415 (loaded when the command is used)
-
-        return register_command
-    if name == "check":
-        from planarcal.commands import check  # noqa: PLC0415 (loaded when the command is used)
-
-        return check
-    if name == "locate":
-        from planarcal.commands import locate  # noqa: PLC0415 (loaded when the command is used)
-
-        return locate
-    if name == "run":
-        from planarcal.commands import run  # noqa: PLC0415 (loaded when the command is used)
-
-        return run
-    if name == "demo":
-        from planarcal.commands import demo  # noqa: PLC0415 (loaded when the command is used)
-
-        return demo
-    raise KeyError(name)
+    return importlib.import_module(_MODULES[name])
 
 
 class _Parser(argparse.ArgumentParser):
