@@ -57,6 +57,9 @@ def vm_bytes():
             return int(line.split()[1]) * 1024
 
 points = np.zeros((50_000_000, 2))  # 800 MB
+# planarcal exports lazily: load what the calls use (OpenCV among it) before the limit, which
+# is for their outputs, not for loading libraries.
+planarcal.transform_points, planarcal.perspectiveTransform, planarcal.reprojection_errors
 # Room for the input and a little more, not for an output as large as the input.
 limit = vm_bytes() + 300 * 2**20
 resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
