@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import arguments
+from planarcal.calib.board_ink import BoardInk
 from planarcal.errors import BoardError
 
 MAX_BOARD_DOTS_PER_SIDE = 1000
@@ -59,6 +60,9 @@ class CircleGridBoard:
     origin_marker: bool = False
     marker_diameter: float | None = None
     layout: Layout = "symmetric"
+
+    kind: ClassVar[str] = "circles"
+    point_name: ClassVar[str] = "dot"
 
     def __post_init__(self) -> None:
         for name in ("cols", "rows"):
@@ -136,6 +140,21 @@ class CircleGridBoard:
     @property
     def n_points(self) -> int:
         return self.cols * self.rows
+
+    @property
+    def orientation_fixed(self) -> bool:
+        """Whether the printed board fixes its own reading: an origin marker, or an asymmetric
+        grid with an odd number of rows (whose pattern has one unmirrored reading)."""
+        return bool(self.origin_marker) or (self.layout == "asymmetric" and self.rows % 2 == 1)
+
+    def ink(self) -> BoardInk:
+        """The dots as black discs (see planarcal.calib.board_ink)."""
+        pts = self.world_points()
+        d = self.dot_diameters()
+        circles = np.column_stack([pts, 0.5 * d, np.ones(len(d))])
+        big = 0.5 * float(d.max())
+        x1, y1 = pts.max(axis=0)
+        return BoardInk(np.zeros((0, 4)), circles, (-big, -big, float(x1) + big, float(y1) + big))
 
     @property
     def extent(self) -> tuple[float, float]:

@@ -45,9 +45,10 @@ from scipy.spatial import cKDTree
 
 from planarcal.calib.blobs import Blobs, find_blobs
 from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.detection import AMBIGUOUS_RULE, BoardDetection, Orientation
+from planarcal.calib.detection import detect_board as detect_board  # the public name, here too
 from planarcal.calib.dot_centres import not_refined_reasons, refine_centres
 from planarcal.calib.dot_sizes import (
-    DotSizes,
     check_description,
     measured_sizes,
 )
@@ -68,7 +69,6 @@ from planarcal.images import ROWS_PER_CHUNK, grey_levels
 
 F64 = NDArray[np.float64]
 Polarity = Literal["auto", "dark", "light"]
-Orientation = Literal["marker", "pattern", "ambiguous"]
 
 # A dot whose ink area exceeds its neighbours' by this factor is enlarged (a marker, a fiducial).
 MARKER_AREA_RATIO = 1.35
@@ -82,57 +82,6 @@ PATTERN_RULE = (
     "the grid's own pattern has one reading that is not mirrored (an asymmetric grid with an "
     "odd number of rows): dot 0 is its origin"
 )
-
-AMBIGUOUS_RULE = (
-    "no origin marker: dot 0 is the corner dot nearest the image's top-left corner, of the "
-    "readings that are not mirrored (the board turned by 180 degrees would look the same)"
-)
-
-
-@dataclasses.dataclass(frozen=True)
-class BoardDetection:
-    """The board found in an image.
-
-    ``image_points[k]`` is the centre of dot k, in pixels (float64; pixel centres at integer
-    coordinates, as OpenCV), in the order of ``board.world_points()``.
-    """
-
-    board: CircleGridBoard
-    image_points: F64
-    image_size: tuple[int, int]
-    """(width, height) of the image in pixels."""
-    method: str
-    """Which finder succeeded: "lattice" (planarcal's own) or "opencv" (findCirclesGrid's
-    defaults)."""
-    polarity: Literal["dark", "light"]
-    """Dark dots on a light board, or light dots on a dark one."""
-    dot_diameters_px: F64
-    """Each dot's equivalent diameter in pixels (from its ink area)."""
-    residual_rms_px: float
-    """RMS distance of the centres from the best homography through them (px)."""
-    refined: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
-    """Per dot: True where the centre was refined from the grey levels, False where the dot
-    could not be measured and keeps its blob's centre (coarser, about 0.1-0.5 px)."""
-    enlarged: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
-    """Per dot: True for dots clearly larger than their neighbours (a marker, fiducials)."""
-    orientation: Orientation = "ambiguous"
-    """"marker": dot 0 is the origin marker; "pattern": the grid itself can be read only one
-    way (an asymmetric grid with an odd number of rows); "ambiguous": neither, and
-    ``orientation_rule`` chose the reading."""
-    orientation_rule: str = AMBIGUOUS_RULE
-    warnings: tuple[str, ...] = ()
-    sizes: DotSizes | None = None
-    """The dots' sizes measured on the board (mm at the stated pitch), which the board's
-    stated diameter and origin marker were checked against (planarcal.calib.dot_sizes)."""
-
-    def world_points(self) -> F64:
-        """The dots' world positions in mm, matching image_points."""
-        return self.board.world_points()
-
-    @property
-    def pitch_px(self) -> float:
-        """Median distance between neighbouring dots in the image (px)."""
-        return float(np.median(_nearest_distance(self.image_points)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,10 +117,11 @@ class DetectionDiagnostics:
     candidates: tuple[RefusedCandidate, ...]
 
 
-def detect_board(
+def detect_circle_grid(
     image: Any, board: CircleGridBoard, *, polarity: Polarity = "auto", turned: bool = False
 ) -> BoardDetection:
-    """Find `board` in `image` (an array, grey or BGR, any real dtype, or a path).
+    """Find the circle grid `board` in `image` (an array, grey or BGR, any real dtype, or a
+    path); planarcal.calib.detection.detect_board's detector for circle grids.
 
     Returns the centre of every dot in the board's order; raises BoardNotFoundError, saying
     what was seen and what to try, when the image does not show the whole board (with
