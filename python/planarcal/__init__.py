@@ -41,7 +41,7 @@ if TYPE_CHECKING:
         LensCandidate,
         LensModel,
     )
-    from planarcal.calib.detect import BoardDetection, detect_board
+    from planarcal.calib.detection import BoardDetection, detect_board
     from planarcal.camera import CameraIntrinsics, calibrate_camera
     from planarcal.errors import (
         ArgumentError,
@@ -113,7 +113,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
         "LensCandidate",
         "LensModel",
     ),
-    "planarcal.calib.detect": ("BoardDetection", "detect_board"),
+    "planarcal.calib.detection": ("BoardDetection", "detect_board"),
     "planarcal.camera": ("CameraIntrinsics", "calibrate_camera"),
     "planarcal.errors": (
         "ArgumentError",

@@ -289,7 +289,7 @@ class Calibration:
     ) -> Calibration:
         """Detects `board` in `image` (array or path) and calibrates from it (``polarity``
         and ``turned`` as in detect_board)."""
-        detection = detect_board(image, board, polarity=polarity, turned=turned)  # type: ignore[arg-type]
+        detection = detect_board(image, board, polarity=polarity, turned=turned)
         return cls.from_detection(
             detection, solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
         )

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calib.board import CircleGridBoard
-from planarcal.calib.detect import BoardDetection, detect_board
+from planarcal.calib.detection import BoardDetection, detect_board
 from planarcal.camera.intrinsics import CameraIntrinsics
 from planarcal.camera.opencv_errors import last_line
 from planarcal.errors import BoardNotFoundError, ImageError, IntrinsicsError
