@@ -94,6 +94,9 @@ class BoardDetection:
     ``orientation_rule`` chose the reading."""
     orientation_rule: str = AMBIGUOUS_RULE
     warnings: tuple[str, ...] = ()
+    layout: str | None = None
+    """Which of a board type's printed layouts was found, where it has several: a ChArUco
+    board's "legacy" (OpenCV before 4.6) or "current"; None where there is one."""
     sizes: DotSizes | None = None
     """The dots' sizes measured on the board (mm at the stated pitch), which the board's
     stated diameter and origin marker were checked against (planarcal.calib.dot_sizes)."""
