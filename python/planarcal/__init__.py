@@ -35,12 +35,15 @@ from planarcal._core import __version__
 # time (tests/test_lazy_exports.py keeps the two and __all__ the same).
 if TYPE_CHECKING:
     from planarcal.calib.board import CircleGridBoard
+    from planarcal.calib.boards import Board
     from planarcal.calib.calibration import (
         Calibration,
         CalibrationSummary,
         LensCandidate,
         LensModel,
     )
+    from planarcal.calib.charuco import CharucoBoard
+    from planarcal.calib.chessboard import ChessboardBoard
     from planarcal.calib.detection import BoardDetection, detect_board
     from planarcal.camera import CameraIntrinsics, calibrate_camera
     from planarcal.errors import (
@@ -107,6 +110,9 @@ if TYPE_CHECKING:
 
 _EXPORTS: dict[str, tuple[str, ...]] = {
     "planarcal.calib.board": ("CircleGridBoard",),
+    "planarcal.calib.boards": ("Board",),
+    "planarcal.calib.charuco": ("CharucoBoard",),
+    "planarcal.calib.chessboard": ("ChessboardBoard",),
     "planarcal.calib.calibration": (
         "Calibration",
         "CalibrationSummary",
@@ -216,6 +222,7 @@ __all__ = [
     "USAC_PROSAC",
     "ArgumentError",
     "ArgumentTypeError",
+    "Board",
     "BoardDetection",
     "BoardError",
     "BoardMismatchError",
@@ -227,6 +234,8 @@ __all__ = [
     "Camera",
     "CameraError",
     "CameraIntrinsics",
+    "CharucoBoard",
+    "ChessboardBoard",
     "CircleGridBoard",
     "DegenerateError",
     "DetectedObject",
