@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import synth
+from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
 from planarcal.errors import MissingDependencyError
@@ -57,7 +58,8 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
     scene = synth.paper_scene(seed=seed)
     board_view, objects_view = scene.calibration, scene.objects
     board = board_view.board
-    assert board is not None  # paper_scene always renders its board in the first view
+    # paper_scene always renders its circle grid in the first view
+    assert isinstance(board, CircleGridBoard)
     cam, pose, fx = board_view.camera, board_view.pose, board_view.effects
     say("planarcal demo: the paper's setup, rendered with exact ground truth (planarcal.synth)")
     say(

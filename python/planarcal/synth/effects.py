@@ -75,13 +75,21 @@ def _checked_image_effects(
 
 
 def _apply_image_effects(
-    radiance: NDArray[np.float32], camera: CameraModel, effects: _ImageEffects, seed: int
+    radiance: NDArray[np.float32],
+    camera: CameraModel,
+    effects: _ImageEffects,
+    seed: int,
+    glare: tuple[tuple[float, float, float], ...] = (),
 ) -> NDArray[np.uint8]:
     """The evenly lit, sharp image (float32, grey or BGR; changed in place) photographed:
-    the lighting's gain, the blur, the noise (from ``default_rng(seed)``), rounded to uint8."""
+    the lighting's gain, the glare spots, the blur, the noise (from ``default_rng(seed)``),
+    rounded to uint8."""
     if effects.gradient or effects.vignette:
         gain = _lighting(camera, effects.gradient, effects.light_angle, effects.vignette)
         radiance *= gain if radiance.ndim == 2 else gain[:, :, None]
+    if glare:
+        light = _glare(camera, glare)
+        radiance += light if radiance.ndim == 2 else light[:, :, None]
     if effects.blur > 0.0:
         blur = effects.blur
         radiance = np.asarray(
@@ -94,6 +102,42 @@ def _apply_image_effects(
         rng = np.random.default_rng(seed)
         radiance += rng.normal(0.0, effects.noise, radiance.shape).astype(np.float32)
     return np.clip(np.rint(radiance), 0, 255).astype(np.uint8)
+
+
+GLARE_PEAK = 510.0
+"""The light a glare spot adds at its centre, in grey levels: twice full scale, so that the
+spot saturates out to its radius whatever lies under it (see :func:`_glare`)."""
+
+
+def _checked_glare(glare: object) -> tuple[tuple[float, float, float], ...]:
+    """render_scene's glare spots as (x_px, y_px, radius_px) tuples; ImageError if bad."""
+    try:
+        spots = [tuple(spot) for spot in glare]  # type: ignore[attr-defined]
+    except TypeError:
+        raise ImageError(
+            f"glare must be a sequence of (x_px, y_px, radius_px) spots, got {glare!r}"
+        ) from None
+    out = []
+    for k, spot in enumerate(spots):
+        if len(spot) != 3:
+            raise ImageError(f"glare[{k}] must be (x_px, y_px, radius_px), got {spot!r}")
+        x, y, r = (arguments.real(f"glare[{k}]", v, ImageError) for v in spot)
+        if r <= 0.0:
+            raise ImageError(f"glare[{k}]: the radius must be > 0 px, got {r!r}")
+        out.append((x, y, r))
+    return tuple(out)
+
+
+def _glare(camera: CameraModel, spots: tuple[tuple[float, float, float], ...]) -> F64:
+    """The light of glare spots, (height, width) grey levels: each adds GLARE_PEAK
+    2^-(d/r)^2 at distance d from its centre, so a spot saturates any surface out to its
+    radius r (where it adds 255) and fades beyond (32 grey levels at 2 r)."""
+    x = np.arange(camera.width, dtype=np.float64)[None, :]
+    y = np.arange(camera.height, dtype=np.float64)[:, None]
+    light = np.zeros((camera.height, camera.width))
+    for cx, cy, r in spots:
+        light += GLARE_PEAK * np.exp2(-((x - cx) ** 2 + (y - cy) ** 2) / (r * r))
+    return np.asarray(light, dtype=np.float32)
 
 
 def _lighting(camera: CameraModel, gradient: float, angle_deg: float, vig: float) -> F64:

@@ -61,18 +61,20 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.boards import Board, is_board
 from planarcal.errors import ArgumentError, BoardError, ImageError
 from planarcal.synth.camera import CameraModel, PlanePose, View
 from planarcal.synth.dots import _board_to_table, _dot_diameters
 from planarcal.synth.effects import (
     _apply_image_effects,
+    _checked_glare,
     _checked_image_effects,
     _ImageEffects,
     _plane_texture,
 )
 from planarcal.synth.marks import _mark_on_table
 from planarcal.synth.objects import SceneObject
-from planarcal.synth.scene import _PAPER, _TABLE, _Scene
+from planarcal.synth.scene import _FIRST_OBJECT, _PAPER, _TABLE, _Scene
 
 F64 = NDArray[np.float64]
 
@@ -93,9 +95,11 @@ class RenderedScene:
     """A rendered scene and its truth.
 
     ``image``: uint8, (height, width) grey or (height, width, 3) BGR.
-    ``dot_centres_px``: (rows * cols, 2) float64, the exact projection (lens distortion
-    included) of each board dot's centre, in board order (point k = r * cols + c); (0, 2)
-    without a board. ``object_centroids_px``: (len(objects), 2), the projection of each
+    ``dot_centres_px``: (n_points, 2) float64, the exact projection (lens distortion
+    included) of each board point (a dot's centre, a chessboard's or a ChArUco board's inner
+    corner) in id order (``board.world_points()``; for a grid, point k = r * cols + c); (0, 2)
+    without a board. ``points_px`` is the same array under the name every board shares.
+    ``object_centroids_px``: (len(objects), 2), the projection of each
     object's centroid: of its top face, the 3-D point (X, Y, -h) with (X, Y) its
     ``position_mm`` and h its ``height_mm`` (0 for a flat object). Note that the image of a
     circle's or object's centre is not the centroid of its image under perspective or
@@ -108,14 +112,18 @@ class RenderedScene:
     ``effects``: the image effects and grey levels the scene was rendered with.
     ``dot_diameters_mm``: (rows * cols,), the diameter each dot was printed with, in board
     order (the board's ``dot_diameters()`` with ``enlarged_dots`` applied); (0,) without a
-    board. ``marks``: the printed marks, in board coordinates (decoration: no truth).
+    circle grid. ``marks``: the printed marks, in board coordinates (decoration: no truth).
+    ``glare``: the glare spots (x_px, y_px, radius_px) the image was rendered with.
+
+    Which points a detector can see: :meth:`points_in_view` (inside the image),
+    :meth:`points_hidden` (under an object or lost in glare), :meth:`points_visible` (both).
     """
 
     image: NDArray[np.uint8]
     dot_centres_px: F64
     object_centroids_px: F64
     objects: tuple[SceneObject, ...]
-    board: CircleGridBoard | None
+    board: Board | None
     board_origin_mm: tuple[float, float]
     board_angle_deg: float
     camera: CameraModel
@@ -125,15 +133,28 @@ class RenderedScene:
     effects: Mapping[str, float | int | bool]
     dot_diameters_mm: F64 = dataclasses.field(default_factory=lambda: np.zeros(0))
     marks: tuple[SceneObject, ...] = ()
+    glare: tuple[tuple[float, float, float], ...] = ()
 
     @property
-    def dot_centres_mm(self) -> F64:
-        """Board dot centres in table coordinates (mm), (rows * cols, 2), in board order."""
+    def points_px(self) -> F64:
+        """The board points' exact projections, (n_points, 2), in id order (0-based: row k
+        is the point ``board.world_points()[k]``); (0, 2) without a board."""
+        return self.dot_centres_px
+
+    @property
+    def points_mm(self) -> F64:
+        """The board points in table coordinates (mm), (n_points, 2), in id order."""
         if self.board is None:
             return np.zeros((0, 2))
         return _board_to_table(
             self.board.world_points(), self.board_origin_mm, self.board_angle_deg
         )
+
+    @property
+    def dot_centres_mm(self) -> F64:
+        """Board dot centres in table coordinates (mm), (rows * cols, 2), in board order
+        (the same as ``points_mm``, for any board)."""
+        return self.points_mm
 
     @property
     def object_centroids_mm(self) -> F64:
@@ -169,10 +190,71 @@ class RenderedScene:
         pixels through this scene's camera and pose (exact; see CameraModel.project)."""
         return self.camera.project(world_xy, self.pose, height_mm)
 
-    def dots_in_view(self, margin_px: float = 0.0) -> NDArray[np.bool_]:
-        """Whether each dot lies wholly inside the image, ``margin_px`` from its border."""
+    def points_in_view(self, margin_px: float = 0.0) -> NDArray[np.bool_]:
+        """Whether each board point (id order) lies inside the image, ``margin_px`` from its
+        border: a circle grid's whole dot, a corner's point itself (give a margin of a few
+        pixels for the squares about it to show)."""
         if self.board is None:
             return np.zeros(0, dtype=bool)
+        m = arguments.real("margin_px", margin_px)
+        if not isinstance(self.board, CircleGridBoard):
+            return _inside(self.points_px, self.camera, m)
+        return self.dots_in_view(m)
+
+    def points_hidden(
+        self, clearance_mm: float | None = None, glare_radii: float = 1.5
+    ) -> NDArray[np.bool_]:
+        """Whether each board point (id order) is hidden: an object (flat or raised, as the
+        camera sees it) covers some of the board within ``clearance_mm`` of it (default: a
+        dot's radius; a quarter of the square about a corner), or it lies within
+        ``glare_radii`` radii of a glare spot's centre in the image (1.5: where the spot
+        adds 107 grey levels or more). Printed marks hide nothing."""
+        board = self.board
+        if board is None:
+            return np.zeros(0, dtype=bool)
+        hidden = np.zeros(board.n_points, dtype=bool)
+        reach = arguments.real("glare_radii", glare_radii)
+        for x, y, r in self.glare:
+            hidden |= np.hypot(self.points_px[:, 0] - x, self.points_px[:, 1] - y) < reach * r
+        if not self.objects:
+            return hidden
+        if clearance_mm is None:
+            if isinstance(board, CircleGridBoard):
+                radius: F64 = self.dot_diameters_mm / 2.0
+            else:
+                radius = np.full(board.n_points, 0.25 * float(board.pitch))
+        else:
+            radius = np.full(board.n_points, arguments.real("clearance_mm", clearance_mm))
+        # Samples on the point and on rings about it, as the camera sees the table there.
+        a = 2.0 * np.pi * np.arange(24) / 24
+        ring = np.column_stack([np.cos(a), np.sin(a)])
+        offsets = np.vstack([[0.0, 0.0], 0.5 * ring, ring])
+        pts = self.points_mm
+        samples = pts[:, None, :] + radius[:, None, None] * offsets[None]
+        centre = self.pose.camera_centre_mm()
+        margin = float(self.effects.get("paper_margin_mm", 15.0))
+        scene = _Scene(
+            board, self.board_origin_mm, self.board_angle_deg, margin, self.objects, centre
+        )
+        x, y = samples[..., 0].reshape(-1), samples[..., 1].reshape(-1)
+        material, _ = scene.classify(x, y, np.zeros_like(x))
+        covered = (material >= _FIRST_OBJECT).reshape(len(pts), -1).any(axis=1)
+        return hidden | covered
+
+    def points_visible(
+        self, margin_px: float = 0.0, clearance_mm: float | None = None
+    ) -> NDArray[np.bool_]:
+        """Whether each board point is in view (:meth:`points_in_view`) and not hidden
+        (:meth:`points_hidden`): the ids a detector of a partial view should find."""
+        return self.points_in_view(margin_px) & ~self.points_hidden(clearance_mm)
+
+    def dots_in_view(self, margin_px: float = 0.0) -> NDArray[np.bool_]:
+        """Whether each dot lies wholly inside the image, ``margin_px`` from its border (for
+        a chessboard or a ChArUco board: :meth:`points_in_view`)."""
+        if self.board is None:
+            return np.zeros(0, dtype=bool)
+        if not isinstance(self.board, CircleGridBoard):
+            return self.points_in_view(margin_px)
         m = arguments.real("margin_px", margin_px)
         a = 2.0 * np.pi * np.arange(64) / 64
         ring = np.column_stack([np.cos(a), np.sin(a)])
@@ -196,7 +278,7 @@ def render_scene(
     camera: CameraModel | None = None,
     pose: PlanePose | None = None,
     *,
-    board: CircleGridBoard | None = CircleGridBoard(),  # noqa: B008 (frozen, immutable)
+    board: Board | None = CircleGridBoard(),  # noqa: B008 (frozen, immutable)
     board_origin_mm: tuple[float, float] = (0.0, 0.0),
     board_angle_deg: float = 0.0,
     paper_margin_mm: float = 15.0,
@@ -216,6 +298,7 @@ def render_scene(
     vignette: float = 0.0,
     table_texture: float = 0.0,
     paper_texture: float = 0.0,
+    glare: Sequence[tuple[float, float, float]] = (),
     color: bool = False,
     seed: int = 0,
     supersample: int = 8,
@@ -225,17 +308,22 @@ def render_scene(
     method.
 
     Geometry: ``camera`` (default :class:`CameraModel()`: 1280 x 720, f = 1070 px, no
-    distortion) looks at the table from ``pose`` (default: 500 mm straight above the board's
-    centre, or the table origin without a board). ``board`` (default the paper's 14 x 10
-    board; None for none) lies with its dot 0 at ``board_origin_mm`` on the table, turned by
+    distortion) looks at the table from ``pose`` (default: 500 mm straight above the middle
+    of the board's points, or the table origin without a board). ``board`` (any board of
+    :mod:`planarcal.calib.boards`; default the paper's 14 x 10 circle grid; None for none)
+    lies with the origin of its world coordinates (a grid's point 0, a ChArUco board's
+    outer top-left corner) at ``board_origin_mm`` on the table, turned by
     ``board_angle_deg`` (from +X towards +Y), printed on paper reaching ``paper_margin_mm``
-    beyond the outer edges of its dots: dark dots on light paper, or light on dark with
-    ``light_on_dark=True`` (paper and ink grey levels swapped). Either layout
+    beyond the outer edges of its ink (``board.ink().field``): dark ink on light paper, or
+    light on dark with ``light_on_dark=True`` (paper and ink grey levels swapped). A
+    chessboard or a ChArUco board is drawn from its ``ink()`` (black rectangles, then
+    circles black or white) by exact area (:mod:`planarcal.synth.pattern`). A circle grid,
+    either layout
     (``board.layout``); each dot is as large as ``board.dot_diameters()`` says (the origin
     marker's up to the distance between neighbours: it may then touch them), except the dots
     in ``enlarged_dots`` (dot index -> diameter in mm, at least the board's dots and at most
-    ``board.neighbour_distance``): fiducials anywhere in the grid. The board's diameter must
-    be known. ``marks`` are decoration printed on the paper: flat shapes (as
+    ``board.neighbour_distance``): fiducials anywhere in the grid (circle grids only). The
+    board's diameter must be known. ``marks`` are decoration printed on the paper: flat shapes (as
     :class:`SceneObject`, ``height_mm`` 0) in *board* coordinates, so they move with the
     board; those without their own ``grey`` are printed in the board's ink (light on dark
     too). They are drawn over the paper and the dots, under the objects, and are no part of
@@ -266,6 +354,16 @@ def render_scene(
     noise of ``noise_sigma`` grey levels drawn from ``numpy.random.default_rng(seed)``;
     rounding and clipping to uint8. The same arguments always give the same image.
 
+    ``glare``: bright spots (x_px, y_px, radius_px) in the image, a lamp's reflection: each
+    adds light after the lighting's gain and before the blur (2^-(d/r)^2 times twice full
+    scale at distance d from its centre), so the image saturates out to its radius and the
+    points there are lost (see :meth:`RenderedScene.points_hidden`).
+
+    Partial views: choose a pose that leaves part of the board outside the image (the truth
+    holds every point's projection, :meth:`RenderedScene.points_in_view` says which are
+    inside), lay an object over it (a flat ``SceneObject("hand", ...)`` with a ``grey``, or a
+    rectangle), or add ``glare``; :meth:`RenderedScene.points_visible` gives the ids left.
+
     ``supersample``: n for the n x n cells of each edge pixel (1-32; see the module's
     docstring). Cells are shaded by exact coverage, so 4 is already within 0.002 of the
     contrast for 10-pixel dots; more only refines curvature and corners.
@@ -278,7 +376,12 @@ def render_scene(
     if not isinstance(camera, CameraModel):
         raise ArgumentError(f"camera must be a CameraModel, got {type(camera).__name__}")
     origin, angle, margin = _checked_board(board, board_origin_mm, board_angle_deg, paper_margin_mm)
-    diameters = None if board is None else _dot_diameters(board, enlarged_dots)
+    diameters = None
+    if isinstance(board, CircleGridBoard):
+        diameters = _dot_diameters(board, enlarged_dots)
+    elif enlarged_dots:
+        raise BoardError("enlarged_dots applies to circle grids, not to a " + board_kind(board))
+    spots = _checked_glare(glare)
     pose = _default_pose(board, origin, angle) if pose is None else pose
     if not isinstance(pose, PlanePose):
         raise ArgumentError(f"pose must be a PlanePose, got {type(pose).__name__}")
@@ -304,7 +407,7 @@ def render_scene(
     radiance = _evenly_lit(
         camera, pose, scene, lut, effects, int(supersample), int(seed), color=bool(color)
     )
-    image = _apply_image_effects(radiance, camera, effects, int(seed))
+    image = _apply_image_effects(radiance, camera, effects, int(seed), spots)
     assert image.shape[:2] == (camera.height, camera.width)
 
     h_world = camera.homography(pose)
@@ -334,18 +437,40 @@ def render_scene(
         effects=record,
         dot_diameters_mm=np.zeros(0) if diameters is None else diameters,
         marks=printed,
+        glare=spots,
+    )
+
+
+def board_kind(board: Board | None) -> str:
+    """What a board is, in words: 'circle grid', 'chessboard', 'ChArUco board'."""
+    kind = getattr(board, "kind", None)
+    names = {"circles": "circle grid", "chessboard": "chessboard", "charuco": "ChArUco board"}
+    return names.get(str(kind), type(board).__name__)
+
+
+def _inside(px: F64, camera: CameraModel, margin: float) -> NDArray[np.bool_]:
+    """Whether each pixel position lies in the image, ``margin`` px from its border."""
+    w, h = camera.width, camera.height
+    return np.asarray(
+        (px[:, 0] >= margin - 0.5)
+        & (px[:, 0] <= w - 0.5 - margin)
+        & (px[:, 1] >= margin - 0.5)
+        & (px[:, 1] <= h - 0.5 - margin)
     )
 
 
 def _checked_board(
-    board: CircleGridBoard | None,
+    board: Board | None,
     origin_mm: tuple[float, float],
     angle_deg: float,
     paper_margin_mm: float,
 ) -> tuple[tuple[float, float], float, float]:
     """The board's placement, checked: (origin, angle, paper margin); BoardError if bad."""
-    if board is not None and not isinstance(board, CircleGridBoard):
-        raise BoardError(f"board must be a CircleGridBoard or None, got {type(board).__name__}")
+    if board is not None and not is_board(board):
+        raise BoardError(
+            "board must be a CircleGridBoard, ChessboardBoard, CharucoBoard or None, got "
+            f"{type(board).__name__}"
+        )
     origin = arguments.pair("board_origin_mm", origin_mm, BoardError)
     angle = arguments.real("board_angle_deg", angle_deg, BoardError)
     margin = arguments.real("paper_margin_mm", paper_margin_mm, BoardError)
@@ -354,16 +479,15 @@ def _checked_board(
     return origin, angle, margin
 
 
-def _default_pose(
-    board: CircleGridBoard | None, origin: tuple[float, float], angle: float
-) -> PlanePose:
-    """500 mm straight above the middle of the board's dots (the table origin without one)."""
+def _default_pose(board: Board | None, origin: tuple[float, float], angle: float) -> PlanePose:
+    """500 mm straight above the middle of the board's points (the table origin without
+    one)."""
     centre = np.zeros(2)
     if board is not None:
-        middle = np.array([[board.cols - 1, board.rows - 1]]) * (board.pitch / 2.0)
-        if board.layout == "asymmetric":
-            pts = board.world_points()
-            middle = 0.5 * (pts.min(axis=0) + pts.max(axis=0))[None, :]
+        pts = board.world_points()
+        middle = 0.5 * (pts.min(axis=0) + pts.max(axis=0))[None, :]
+        if isinstance(board, CircleGridBoard) and board.layout != "asymmetric":
+            middle = np.array([[board.cols - 1, board.rows - 1]]) * (board.pitch / 2.0)
         centre = _board_to_table(middle, origin, angle)[0]
     return PlanePose(500.0, look_at_mm=(float(centre[0]), float(centre[1])))
 
@@ -492,12 +616,12 @@ def _textured_radiance(
 def _board_truth(
     camera: CameraModel,
     pose: PlanePose,
-    board: CircleGridBoard | None,
+    board: Board | None,
     origin: tuple[float, float],
     angle: float,
     h_world: F64,
 ) -> tuple[F64, F64 | None]:
-    """The dots' centres in the image (exact, lens included) and the board -> image
+    """The board's points in the image (exact, lens included) and the board -> image
     homography (H[2, 2] = 1); (0, 2) and None without a board."""
     if board is None:
         return np.zeros((0, 2)), None

@@ -14,9 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.boards import Board
 from planarcal.errors import ArgumentError
 from planarcal.synth.dots import _Dots
 from planarcal.synth.objects import SceneObject
+from planarcal.synth.pattern import _Pattern, _rotated_cell
 from planarcal.synth.point_index import _PointIndex
 from planarcal.synth.raised import _Raised
 from planarcal.synth.shapes import _Circle, _coverage, _Shape
@@ -33,7 +35,7 @@ class _Scene:
 
     def __init__(
         self,
-        board: CircleGridBoard | None,
+        board: Board | None,
         origin: tuple[float, float],
         angle_deg: float,
         margin: float,
@@ -41,6 +43,12 @@ class _Scene:
         camera_centre: F64 | None = None,
         dot_diameters: F64 | None = None,
     ) -> None:
+        # A circle grid is drawn by its dots' field (planarcal.synth.dots); any other board
+        # from its printed ink (planarcal.synth.pattern).
+        self.pattern: _Pattern | None = None
+        if board is not None and not isinstance(board, CircleGridBoard):
+            self.pattern = _Pattern(board.ink(), margin)
+            board = None
         self.board = board
         self.ox, self.oy = origin
         a = math.radians(angle_deg)
@@ -109,6 +117,26 @@ class _Scene:
         for sel, sd, nbx, nby in self.dots.others(bx, by, pad, nearest):
             yield sel, sd, self.cos * nbx - self.sin * nby, self.sin * nbx + self.cos * nby
 
+    def _to_board(self, x: F64, y: F64) -> tuple[F64, F64]:
+        """Table points (mm) in board coordinates."""
+        dx, dy = x - self.ox, y - self.oy
+        return self.cos * dx + self.sin * dy, self.cos * dy - self.sin * dx
+
+    def _shade_pattern(
+        self, x: F64, y: F64, cell: tuple[F64, F64, F64, F64], lut: F64, pad: float, out: F64
+    ) -> None:
+        """Draw a board printed as rectangles into ``out`` (in place, over the table): each
+        material by its exact share of the cell, then the circles over them."""
+        assert self.pattern is not None
+        bx, by = self._to_board(x, y)
+        board_cell = _rotated_cell(cell, self.cos, self.sin)
+        shares = self.pattern.coverage(bx, by, board_cell)
+        out[:] = shares @ lut[:3]
+        for sel, material, field in self.pattern.circle_fields(bx, by, pad):
+            part = tuple(c[sel] for c in board_cell)
+            cov = _coverage(*field, part)  # type: ignore[arg-type]
+            out[sel] += (lut[material][None, :] - out[sel]) * cov[:, None]
+
     def _near_object(self, i: int, points: _PointIndex, pad: float) -> NDArray[np.intp]:
         return points.near(self.object_bbox[i], pad)
 
@@ -117,6 +145,10 @@ class _Scene:
         ``radius`` (mm) of it (conservative: it never misses one)."""
         mat = np.zeros(x.shape, dtype=np.int16)
         edge = np.zeros(x.shape, dtype=bool)
+        if self.pattern is not None:
+            bx, by = self._to_board(x, y)
+            page, edge = self.pattern.classify(bx, by, radius)
+            mat[:] = page
         if self.board is not None:
             (sd_p, _, _), (sd_d, _, _) = self._board_fields(x, y, float(radius.max()))
             mat[sd_p < 0.0] = _PAPER
@@ -168,6 +200,8 @@ class _Scene:
         ax, ay, bx, by = cell
         # Beyond pad (mm) from its centre no boundary touches a cell: its coverage is 0 or 1.
         pad = float(np.max(np.abs(ax) + np.abs(bx) + np.abs(ay) + np.abs(by)))
+        if self.pattern is not None:
+            self._shade_pattern(x, y, cell, lut, pad, out)
         if self.board is not None:
             paper, dots = self._board_fields(x, y, pad)
             cov = _coverage(*paper, cell)
