@@ -19,7 +19,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from planarcal.calib.board import LAYOUTS, CircleGridBoard
+from planarcal.calib.boards import BOARD_TYPES, Board
 from planarcal.calib.calibration import Calibration
+from planarcal.calib.charuco import DICTIONARIES, CharucoBoard
+from planarcal.calib.chessboard import ChessboardBoard
 from planarcal.calib.frame_size import size_text
 from planarcal.errors import (
     ArgumentError,
@@ -28,6 +31,7 @@ from planarcal.errors import (
     ImageError,
     IntrinsicsError,
 )
+from planarcal.report.printable.options import LEGACY_WORDS
 from planarcal.robot.output_frame import FRAMES, Coords, checked_frame
 
 # -- numbers, checked while the command line is parsed (argparse names the option) ----------
@@ -88,74 +92,272 @@ def command_line(*errors: type[Exception]) -> Iterator[None]:
 
 # -- the board -------------------------------------------------------------------------------
 
+BOARD_GIVEN = "board_options_given"
+"""The namespace attribute where the board's options note which were typed: {dest: option}."""
+
+# Which board types each option describes (by its dest); the others refuse it.
+_OPTION_TYPES: dict[str, tuple[str, ...]] = {
+    "cols": ("circles", "chessboard"),
+    "rows": ("circles", "chessboard"),
+    "origin_marker": ("circles", "chessboard"),
+    "pitch": ("circles",),
+    "diameter": ("circles",),
+    "layout": ("circles",),
+    "marker_diameter": ("circles",),
+    "square": ("chessboard", "charuco"),
+    "squares_x": ("charuco",),
+    "squares_y": ("charuco",),
+    "marker": ("charuco",),
+    "dictionary": ("charuco",),
+    "legacy": ("charuco",),
+}
+
+# What a board of each type is told with, for a refusal to name.
+_TYPE_OPTIONS = {
+    "circles": "--cols, --rows, --pitch, --diameter, --layout, --origin-marker and "
+    "--marker-diameter",
+    "chessboard": "--cols and --rows (inner corners), --square and --origin-marker",
+    "charuco": "--squares-x, --squares-y, --square, --marker, --dictionary and --legacy",
+}
+
+# The option another type's user most likely meant instead, by (type, dest).
+_INSTEAD = {
+    ("charuco", "cols"): "--squares-x (a ChArUco board is counted in squares)",
+    ("charuco", "rows"): "--squares-y (a ChArUco board is counted in squares)",
+    ("chessboard", "pitch"): "--square",
+    ("charuco", "pitch"): "--square",
+    ("circles", "square"): "--pitch",
+    ("chessboard", "squares_x"): "--cols (a chessboard is counted in inner corners)",
+    ("chessboard", "squares_y"): "--rows (a chessboard is counted in inner corners)",
+    ("circles", "squares_x"): "--cols",
+    ("circles", "squares_y"): "--rows",
+}
+
+
+class _Noted(argparse.Action):
+    """Stores a board option as argparse's own actions do (a flag stores ``const``) and
+    notes that it was typed, so that an option of another board type is refused rather than
+    ignored, and a type's own defaults are used where nothing was typed."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
+        given = dict(getattr(namespace, BOARD_GIVEN, None) or {})
+        given[self.dest] = option_string or self.dest
+        setattr(namespace, BOARD_GIVEN, given)
+
+
+def _dictionary_name(text: str) -> str:
+    """One of OpenCV's predefined ArUco dictionaries, any case (``dict_4x4_50``)."""
+    for name in DICTIONARIES:
+        if name.lower() == text.strip().lower():
+            return name
+    raise argparse.ArgumentTypeError(
+        f"{text!r} is not one of OpenCV's predefined ArUco dictionaries: {', '.join(DICTIONARIES)}"
+    )
+
 
 def board_arguments(p: argparse.ArgumentParser, *, for_printing: bool = False) -> None:
-    """The board's arguments. A board `for_printing` (`planarcal board`) gets an origin
-    marker unless told otherwise, and a diameter when none is given; a board to be found in
-    an image has no marker unless told (detection recognises an enlarged corner dot by
-    itself), and its diameter, when none is given, is measured from the image."""
+    """The board's arguments: ``--type`` (circles, the default, chessboard or charuco) and
+    each type's own. A board `for_printing` (`planarcal board`) gets an origin marker unless
+    told otherwise (a circle grid's larger dot, a chessboard's three dots), and a circle
+    grid a diameter when none is given; a board to be found in an image has no marker unless
+    told (detection recognises an enlarged corner dot by itself), and its diameter, when
+    none is given, is measured from the image. An option of another type than the one
+    chosen is refused by ``board_from``."""
     g = p.add_argument_group("board (millimetres; the defaults are the paper's board)")
     # One source for every command's defaults: a board printed with them is found with them.
     default = CircleGridBoard()
+    chess = ChessboardBoard()
+    charuco = CharucoBoard()
     g.add_argument(
-        "--cols", type=int, default=default.cols, help=f"dots along a row (default {default.cols})"
+        "--type",
+        choices=BOARD_TYPES,
+        default="circles",
+        help="circles (default): a circle grid, the paper's board; chessboard: OpenCV's "
+        "chessboard; charuco: OpenCV's ChArUco board",
+    )
+    g.add_argument(
+        "--cols",
+        type=int,
+        default=default.cols,
+        action=_Noted,
+        help=f"dots along a row (default {default.cols}); a chessboard's inner corners "
+        f"along a row (default {chess.cols})",
     )
     g.add_argument(
         "--rows",
         type=int,
         default=default.rows,
-        help=f"dots down a column (default {default.rows})",
-    )
-    g.add_argument(
-        "--pitch",
-        type=positive,
-        default=default.pitch,
-        help=f"centre-to-centre distance ({default.pitch:g}); in the asymmetric layout the "
-        "distance between rows, half that between dots along a row",
-    )
-    g.add_argument(
-        "--diameter",
-        type=positive,
-        default=None,
-        help="dot diameter (default: half the distance between neighbouring dots)"
-        if for_printing
-        else "dot diameter (default: measured from the image)",
-    )
-    g.add_argument(
-        "--layout",
-        choices=LAYOUTS,
-        default="symmetric",
-        help="symmetric (default): a square grid; asymmetric: OpenCV's asymmetric circle grid, "
-        "every other row shifted by a pitch",
+        action=_Noted,
+        help=f"dots down a column (default {default.rows}); a chessboard's inner corners "
+        f"down a column (default {chess.rows})",
     )
     marker = g.add_mutually_exclusive_group()
     marker.add_argument(
         "--origin-marker",
         dest="origin_marker",
-        action="store_true",
-        help="the origin dot is larger and fixes the orientation"
-        + (" (the default)" if for_printing else ""),
+        action=_Noted,
+        nargs=0,
+        const=True,
+        help="the origin dot is larger and fixes the orientation; on a chessboard, three dots "
+        "about the middle" + (" (the default)" if for_printing else ""),
     )
     marker.add_argument(
         "--no-origin-marker",
         dest="origin_marker",
-        action="store_false",
-        help="all dots the same size" + ("" if for_printing else " (the default)"),
+        action=_Noted,
+        nargs=0,
+        const=False,
+        help="all dots the same size; a chessboard without dots"
+        + ("" if for_printing else " (the default)"),
     )
     p.set_defaults(origin_marker=for_printing)
-    g.add_argument(
+
+    dots = p.add_argument_group("circle grid (--type circles)")
+    dots.add_argument(
+        "--pitch",
+        type=positive,
+        default=default.pitch,
+        action=_Noted,
+        help=f"centre-to-centre distance ({default.pitch:g}); in the asymmetric layout the "
+        "distance between rows, half that between dots along a row",
+    )
+    dots.add_argument(
+        "--diameter",
+        type=positive,
+        default=None,
+        action=_Noted,
+        help="dot diameter (default: half the distance between neighbouring dots)"
+        if for_printing
+        else "dot diameter (default: measured from the image)",
+    )
+    dots.add_argument(
+        "--layout",
+        choices=LAYOUTS,
+        default="symmetric",
+        action=_Noted,
+        help="symmetric (default): a square grid; asymmetric: OpenCV's asymmetric circle grid, "
+        "every other row shifted by a pitch",
+    )
+    dots.add_argument(
         "--marker-diameter",
         type=positive,
         default=None,
+        action=_Noted,
         help="diameter of the origin marker, at most the distance to its neighbours "
         "(default 1.5 x the dots, or less where that would crowd them)",
     )
 
+    squares = p.add_argument_group("chessboard and ChArUco board (--type chessboard, charuco)")
+    squares.add_argument(
+        "--square",
+        type=positive,
+        default=None,
+        action=_Noted,
+        help=f"side of a square (default {chess.square:g} for a chessboard, "
+        f"{charuco.square:g} for a ChArUco board)",
+    )
+    squares.add_argument(
+        "--squares-x",
+        type=int,
+        default=charuco.squares_x,
+        action=_Noted,
+        help=f"a ChArUco board's squares along a row (default {charuco.squares_x})",
+    )
+    squares.add_argument(
+        "--squares-y",
+        type=int,
+        default=charuco.squares_y,
+        action=_Noted,
+        help=f"a ChArUco board's squares down a column (default {charuco.squares_y})",
+    )
+    squares.add_argument(
+        "--marker",
+        type=positive,
+        default=charuco.marker,
+        action=_Noted,
+        help=f"side of a ChArUco marker, smaller than the square (default {charuco.marker:g})",
+    )
+    squares.add_argument(
+        "--dictionary",
+        type=_dictionary_name,
+        default=charuco.dictionary,
+        action=_Noted,
+        metavar="DICT",
+        help=f"the markers' ArUco dictionary, one of OpenCV's predefined ones (default "
+        f"{charuco.dictionary}): DICT_4X4_50 ... DICT_7X7_1000, DICT_ARUCO_ORIGINAL, "
+        "DICT_APRILTAG_16h5 ...",
+    )
+    squares.add_argument(
+        "--legacy",
+        choices=tuple(LEGACY_WORDS),
+        default="auto",
+        action=_Noted,
+        help="which of OpenCV's ChArUco layouts (they differ for an even number of rows): "
+        "yes, OpenCV before 4.6; no, 4.6 and later; auto (default): "
+        + ("the current one" if for_printing else "either, found from the image"),
+    )
 
-def board_from(args: argparse.Namespace) -> CircleGridBoard:
-    """The board the arguments describe; one that cannot be (a dot wider than the pitch, a
-    row of one dot) is a malformed command line."""
+
+def _refuse_other_types(kind: str, given: dict[str, str]) -> None:
+    """ArgumentError naming the first typed option that does not describe a board of
+    ``kind``, and what does."""
+    for dest, option in given.items():
+        if kind in _OPTION_TYPES.get(dest, (kind,)):
+            continue
+        instead = _INSTEAD.get((kind, dest))
+        hint = f"; did you mean {instead}?" if instead else ""
+        raise argparse.ArgumentError(
+            None,
+            f"{option} does not apply to --type {kind}: a {_KIND_WORDS[kind]} is told with "
+            f"{_TYPE_OPTIONS[kind]}{hint}",
+        )
+
+
+_KIND_WORDS = {"circles": "circle grid", "chessboard": "chessboard", "charuco": "ChArUco board"}
+
+
+def board_from(args: argparse.Namespace) -> Board:
+    """The board the arguments describe (any type, ``--type``; circles when absent); one
+    that cannot be (a dot wider than the pitch, a row of one dot) or an option of another
+    type is a malformed command line. A type's own defaults stand for what was not typed."""
+    kind = getattr(args, "type", "circles")
+    given: dict[str, str] = getattr(args, BOARD_GIVEN, None) or {}
+    _refuse_other_types(kind, given)
     with command_line(BoardError):
+        if kind == "chessboard":
+            chess = ChessboardBoard()
+            cols = args.cols if "cols" in given else chess.cols
+            rows = args.rows if "rows" in given else chess.rows
+            if args.origin_marker and min(cols, rows) == 2:
+                # Said in the options' words: the marker may be the default, not typed.
+                raise BoardError(
+                    f"a chessboard's origin marker needs at least 3 x 3 inner corners (its "
+                    f"three dots sit in the squares about the middle), got {cols} x {rows}: "
+                    "give more --cols/--rows, or --no-origin-marker"
+                )
+            return ChessboardBoard(
+                cols=cols,
+                rows=rows,
+                square=chess.square if args.square is None else args.square,
+                origin_marker=args.origin_marker,
+            )
+        if kind == "charuco":
+            charuco = CharucoBoard()
+            return CharucoBoard(
+                squares_x=args.squares_x,
+                squares_y=args.squares_y,
+                square=charuco.square if args.square is None else args.square,
+                marker=args.marker,
+                dictionary=args.dictionary,
+                legacy=LEGACY_WORDS[args.legacy],
+            )
         return CircleGridBoard(
             cols=args.cols,
             rows=args.rows,

@@ -1,6 +1,7 @@
-"""`planarcal board`: a printable board (SVG or PDF) at exact scale, on the smallest ISO A
-page it fits (``--page auto``) or on the page asked for, with the commands for boards that
-fit A4 and letter when it needs a larger page."""
+"""`planarcal board`: a printable board of any type (a circle grid, a chessboard, a ChArUco
+board: ``--type``) as SVG or PDF at exact scale, on the smallest ISO A page it fits
+(``--page auto``) or on the page asked for, with the commands for boards that fit A4 and
+letter when it needs a larger page."""
 
 from __future__ import annotations
 
@@ -11,11 +12,15 @@ import shlex
 from pathlib import Path
 
 from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.boards import Board
+from planarcal.calib.charuco import CharucoBoard
 from planarcal.commands import board_arguments, board_from, command_line, non_negative
 from planarcal.errors import ArgumentError, BoardError
 from planarcal.report.printable import (
     MARGIN_MM,
     PrintLayout,
+    board_options,
+    exact_mm,
     page_refusal,
     page_size,
     pitch_meaning,
@@ -27,7 +32,8 @@ from planarcal.report.printable import (
 AUTO_PAGES = ("A4", "A3", "A2", "A1", "A0")
 
 DESCRIPTION = (
-    "Write a circle-grid board to print at 100%, with a 100 mm check bar and its parameters."
+    "Write a board to print at 100% (a circle grid, or with --type a chessboard or a ChArUco "
+    "board), with a 100 mm check bar and its parameters."
 )
 
 
@@ -52,7 +58,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     board = board_from(args)
-    if board.diameter is None:
+    if isinstance(board, CircleGridBoard) and board.diameter is None:
         # A printed dot needs a size: half the neighbour distance, dots as wide as the gaps.
         board = dataclasses.replace(board, diameter=board.neighbour_distance / 2)
     auto = args.page.lower() == "auto"
@@ -83,12 +89,20 @@ def main(args: argparse.Namespace) -> int:
         # command for a board that fits the last one.
         raise BoardError(refused)
     print(f"wrote {args.output}: {board.describe()}, on {layout.page} {layout.orientation}.")
-    print(f"{board.layout.capitalize()} grid: {pitch_meaning(board)}.")
-    if args.diameter is None:
-        print(
-            f"Dot diameter {board.diameter:g} mm: half the distance between neighbouring dots "
-            "(no --diameter given)."
-        )
+    if isinstance(board, CircleGridBoard):
+        print(f"{board.layout.capitalize()} grid: {pitch_meaning(board)}.")
+        if args.diameter is None:
+            print(
+                f"Dot diameter {board.diameter:g} mm: half the distance between neighbouring "
+                "dots (no --diameter given)."
+            )
+    else:
+        if isinstance(board, CharucoBoard) and board.legacy is None and board.layouts_differ:
+            print(
+                "Printed in OpenCV's current layout (4.6 and later); --legacy yes prints the "
+                "layout of older versions."
+            )
+        print(f"Calibrate with: planarcal calibrate PHOTO -o cal.json {_board_words(board)}")
     print("Print it at 100% (actual size, no fit-to-page) and check the bar measures 100 mm.")
     if auto and layout.page != AUTO_PAGES[0]:
         # Most printers take A4 or letter only: say which board each holds.
@@ -100,7 +114,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def board_command(args: argparse.Namespace, page: str, board: CircleGridBoard) -> str:
+def board_command(args: argparse.Namespace, page: str, board: Board) -> str:
     """The `planarcal board` command line that prints `board` on `page`, with the options of
     `args` it keeps (output, orientation, margin, layout, marker)."""
     words = ["planarcal board", "-o", shlex.quote(str(args.output)), "--page", shlex.quote(page)]
@@ -108,32 +122,38 @@ def board_command(args: argparse.Namespace, page: str, board: CircleGridBoard) -
         words += ["--orientation", args.orientation]
     if args.margin != MARGIN_MM:
         words += ["--margin", f"{args.margin:g}"]
+    if not isinstance(board, CircleGridBoard):
+        return " ".join([*words, *board_options(board, for_printing=True)])
     words += ["--cols", str(board.cols), "--rows", str(board.rows), "--pitch", f"{board.pitch:g}"]
     # Sizes the user chose are kept, scaled with the pitch; unchosen ones follow it anyway.
     if args.diameter is not None:
-        words += ["--diameter", _exact_mm(board.dots_mm())]
+        words += ["--diameter", exact_mm(board.dots_mm())]
     if board.layout != "symmetric":
         words += ["--layout", board.layout]
     if not board.origin_marker:
         words.append("--no-origin-marker")
     elif board.marker_diameter is not None:
-        words += ["--marker-diameter", _exact_mm(board.marker_diameter)]
+        words += ["--marker-diameter", exact_mm(board.marker_diameter)]
     return " ".join(words)
 
 
-def _exact_mm(value: float) -> str:
-    """A length as short as it reads back exactly: a marker held at the dots' spacing must
-    not be rounded past it."""
-    short = f"{value:.10g}"
-    return short if float(short) == value else repr(float(value))
+def _board_words(board: Board) -> str:
+    """The options that describe ``board`` to planarcal calibrate, quoted for a shell."""
+    return " ".join(shlex.quote(w) for w in board_options(board))
 
 
-def _offer(args: argparse.Namespace, page: str, board: CircleGridBoard) -> str:
+def _offer(args: argparse.Namespace, page: str, board: Board) -> str:
     """A smaller board that fits `page`, offered as its command line."""
-    return (
-        f"`{board_command(args, page, board)}` ({_dots_and_pitch(board)}; calibrate with the "
-        "same --cols, --rows and --pitch)"
-    )
+    if isinstance(board, CircleGridBoard):
+        return (
+            f"`{board_command(args, page, board)}` ({_dots_and_pitch(board)}; calibrate with "
+            "the same --cols, --rows and --pitch)"
+        )
+    if isinstance(board, CharucoBoard):
+        what = f"{board.squares_x} x {board.squares_y} squares of {board.square:g} mm"
+    else:
+        what = f"{board.cols} x {board.rows} inner corners, squares of {board.square:g} mm"
+    return f"`{board_command(args, page, board)}` ({what}; calibrate with the same options)"
 
 
 def _dots_and_pitch(board: CircleGridBoard) -> str:

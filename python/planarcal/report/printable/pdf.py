@@ -1,7 +1,8 @@
 """The laid-out page as a one-page PDF, written by hand: the MediaBox is the page in points
 (mm * 72 / 25.4); one ``cm`` operator scales the content to mm (72 / 25.4 written to 12
 decimals) and flips y; dots are the usual four cubic Bezier arcs, exact at their four
-extreme points and within 0.03 % of the radius between them (2 micrometres on a 15 mm dot).
+extreme points and within 0.03 % of the radius between them (2 micrometres on a 15 mm dot);
+a board's black squares and marker cells are one path of rectangles filled at once.
 Text uses the standard Courier fonts (no embedding, widths exactly 0.6 em), and the catalog
 asks viewers not to scale when printing (``/PrintScaling /None``)."""
 
@@ -10,9 +11,9 @@ from __future__ import annotations
 import math
 import zlib
 
-from planarcal.calib.board import CircleGridBoard
-from planarcal.report.printable.layout import Drawing
-from planarcal.report.printable.shapes import Circle, Line, Polygon, fmt
+from planarcal.calib.boards import Board
+from planarcal.report.printable.layout import Drawing, document_title
+from planarcal.report.printable.shapes import Area, Circle, Line, Polygon, fmt
 
 PT_PER_MM = 72.0 / 25.4
 """PDF points per millimetre (a point is 1/72 inch, an inch 25.4 mm)."""
@@ -39,13 +40,22 @@ def _pdf_content(drawing: Drawing) -> bytes:
             cx, cy, r = shape.cx, shape.cy, shape.r
             c = _KAPPA * r
             f = fmt
-            ops.append(
+            disc = (
                 f"{f(cx + r)} {f(cy)} m "
                 f"{f(cx + r)} {f(cy + c)} {f(cx + c)} {f(cy + r)} {f(cx)} {f(cy + r)} c "
                 f"{f(cx - c)} {f(cy + r)} {f(cx - r)} {f(cy + c)} {f(cx - r)} {f(cy)} c "
                 f"{f(cx - r)} {f(cy - c)} {f(cx - c)} {f(cy - r)} {f(cx)} {f(cy - r)} c "
                 f"{f(cx + c)} {f(cy - r)} {f(cx + r)} {f(cy - c)} {f(cx + r)} {f(cy)} c h f"
             )
+            # A white disc is filled white, then black is the fill again.
+            ops.append(f"1 g {disc} 0 g" if shape.white else disc)
+        elif isinstance(shape, Area):
+            ops += [
+                f"{fmt(x0)} {fmt(y0)} m {fmt(x1)} {fmt(y0)} l {fmt(x1)} {fmt(y1)} l "
+                f"{fmt(x0)} {fmt(y1)} l h"
+                for x0, y0, x1, y1 in shape.rects
+            ]
+            ops.append("f")
         elif isinstance(shape, Line):
             ops.append(
                 f"{fmt(shape.width)} w {fmt(shape.x1)} {fmt(shape.y1)} m "
@@ -65,10 +75,10 @@ def _pdf_content(drawing: Drawing) -> bytes:
     return ("\n".join(ops) + "\n").encode("latin-1")
 
 
-def pdf_bytes(drawing: Drawing, board: CircleGridBoard) -> bytes:
+def pdf_bytes(drawing: Drawing, board: Board) -> bytes:
     w, h = drawing.size
     content = zlib.compress(_pdf_content(drawing), 9)
-    title = f"planarcal circle-grid board: {board.describe()}"
+    title = document_title(board)
     objects: list[bytes] = [
         b"<< /Type /Catalog /Pages 2 0 R "
         b"/ViewerPreferences << /PrintScaling /None /PickTrayByPDFSize true >> >>",

@@ -1,6 +1,6 @@
-"""What a printed page is drawn with: circles, stroked lines, filled polygons and text, in
-page mm (from the top-left corner, y down), each with the box it covers; and coordinates as
-the SVG and PDF writers write them.
+"""What a printed page is drawn with: circles, black areas (rectangles filled as one path),
+stroked lines, filled polygons and text, in page mm (from the top-left corner, y down), each
+with the box it covers; and coordinates as the SVG and PDF writers write them.
 
 Text widths are budgeted at 0.66 em per character (Courier's 0.6 plus 10 % for an SVG
 viewer that substitutes another monospace font), heights at 0.8 em above and 0.25 em below
@@ -26,7 +26,8 @@ Box = tuple[float, float, float, float]
 
 @dataclasses.dataclass(frozen=True)
 class Circle:
-    """A filled circle: a dot."""
+    """A filled circle: a dot, black unless ``white`` (a chessboard's marker dot on a black
+    square)."""
 
     cx: float
     cy: float
@@ -34,9 +35,26 @@ class Circle:
     group: str
     id: str
     cls: str
+    white: bool = False
 
     def box(self) -> Box:
         return (self.cx - self.r, self.cy - self.r, self.cx + self.r, self.cy + self.r)
+
+
+@dataclasses.dataclass(frozen=True)
+class Area:
+    """Black rectangles (x0, y0, x1, y1) filled as one path: a chessboard's squares, an ArUco
+    marker's cells. They may share edges but never overlap, so the path's fill is exactly
+    their union, and a rasteriser's anti-aliasing leaves no pale seam where two of them meet
+    (as it would drawing them one by one)."""
+
+    rects: tuple[Box, ...]
+    group: str
+    id: str
+    cls: str
+
+    def box(self) -> Box:
+        return union(self.rects)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +127,7 @@ class Text:
         return (left, self.y - ASCENT * self.size, left + width, self.y + DESCENT * self.size)
 
 
-Shape = Circle | Line | Polygon | Text
+Shape = Circle | Area | Line | Polygon | Text
 """Anything drawn; each carries its SVG group, element id and class."""
 
 
@@ -129,6 +147,9 @@ def shift(shape: Shape, dx: float, dy: float) -> Shape:
         )
     if isinstance(shape, Polygon):
         return dataclasses.replace(shape, points=tuple((x + dx, y + dy) for x, y in shape.points))
+    if isinstance(shape, Area):
+        moved = tuple((x0 + dx, y0 + dy, x1 + dx, y1 + dy) for x0, y0, x1, y1 in shape.rects)
+        return dataclasses.replace(shape, rects=moved)
     return dataclasses.replace(shape, x=shape.x + dx, y=shape.y + dy)
 
 

@@ -1,20 +1,21 @@
 """The laid-out page as SVG: ``width``/``height`` in mm and a ``viewBox`` in mm, so one user
-unit is one mm; dots are ``<circle>`` elements (exact circles)."""
+unit is one mm; dots are ``<circle>`` elements (exact circles), a board's black squares and
+marker cells one ``<path>`` of rectangles (``M x0 y0 H x1 V y1 H x0 Z`` each)."""
 
 from __future__ import annotations
 
 from xml.sax.saxutils import escape, quoteattr
 
-from planarcal.calib.board import CircleGridBoard
-from planarcal.report.printable.layout import Drawing
-from planarcal.report.printable.shapes import Circle, Line, Polygon, fmt
+from planarcal.calib.boards import Board
+from planarcal.report.printable.layout import Drawing, document_title
+from planarcal.report.printable.shapes import Area, Circle, Line, Polygon, fmt
 
 _FONT_FAMILY = "Courier, 'Courier New', 'Liberation Mono', 'DejaVu Sans Mono', monospace"
 
 
-def svg_bytes(drawing: Drawing, board: CircleGridBoard) -> bytes:
+def svg_bytes(drawing: Drawing, board: Board) -> bytes:
     w, h = drawing.size
-    title = f"planarcal circle-grid board: {board.describe()}; {drawing.page} {drawing.orientation}"
+    title = f"{document_title(board)}; {drawing.page} {drawing.orientation}"
     out = [
         '<?xml version="1.0" encoding="UTF-8" standalone="no"?>',
         f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" width="{fmt(w)}mm" '
@@ -29,9 +30,17 @@ def svg_bytes(drawing: Drawing, board: CircleGridBoard) -> bytes:
     for shape in drawing.shapes:
         attrs = f'id="{shape.id}" class="{shape.cls}"'
         if isinstance(shape, Circle):
+            white = ' fill="#ffffff"' if shape.white else ""
             element = (
-                f'<circle {attrs} cx="{fmt(shape.cx)}" cy="{fmt(shape.cy)}" r="{fmt(shape.r)}"/>'
+                f'<circle {attrs} cx="{fmt(shape.cx)}" cy="{fmt(shape.cy)}" '
+                f'r="{fmt(shape.r)}"{white}/>'
             )
+        elif isinstance(shape, Area):
+            path = " ".join(
+                f"M{fmt(x0)} {fmt(y0)}H{fmt(x1)}V{fmt(y1)}H{fmt(x0)}Z"
+                for x0, y0, x1, y1 in shape.rects
+            )
+            element = f'<path {attrs} d="{path}"/>'
         elif isinstance(shape, Line):
             element = (
                 f'<line {attrs} x1="{fmt(shape.x1)}" y1="{fmt(shape.y1)}" '

@@ -13,10 +13,17 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.boards import Board
 from planarcal.errors import ArgumentError, BoardError
 from planarcal.files import atomic_write
-from planarcal.report.printable.layout import CHECK_BAR_MM, MARGIN_MM, fit, in_words, refusal
+from planarcal.report.printable.layout import (
+    CHECK_BAR_MM,
+    MARGIN_MM,
+    AnyBoard,
+    fit,
+    in_words,
+    refusal,
+)
 from planarcal.report.printable.pages import Orientation, num, parse_page
 from planarcal.report.printable.pdf import PT_PER_MM, pdf_bytes
 from planarcal.report.printable.shapes import Box
@@ -27,7 +34,8 @@ from planarcal.report.printable.svg import svg_bytes
 class PrintLayout:
     """Where ``write_board`` put everything, in page mm (from the top-left corner, y down).
 
-    ``field_offset_mm`` is the page position of world (0, 0), the centre of dot 0: a world
+    ``field_offset_mm`` is the page position of world (0, 0) (a circle grid's dot 0, a
+    chessboard's top-left inner corner, a ChArUco board's top-left outer corner): a world
     point (X, Y) of the board is printed at (X, Y) + field_offset_mm (see ``to_page``). In a
     PDF, whose y runs up from the bottom in points, a page point (x, y) is at
     (x * PT_PER_MM, (page height - y) * PT_PER_MM).
@@ -36,7 +44,7 @@ class PrintLayout:
     path: Path
     """The file written."""
     format: Literal["svg", "pdf"]
-    board: CircleGridBoard
+    board: Board
     page: str
     """The page's name ("A4", "letter") or custom size ("300x400")."""
     page_size_mm: tuple[float, float]
@@ -44,9 +52,9 @@ class PrintLayout:
     orientation: Literal["portrait", "landscape"]
     margin_mm: float
     field_offset_mm: tuple[float, float]
-    """Page position of world (0, 0), the centre of dot 0."""
+    """Page position of world (0, 0)."""
     field_box_mm: Box
-    """The dot field, outer edge to outer edge (``board.extent``), centred on the page."""
+    """The board's field, outer edge to outer edge (``board.extent``), centred on the page."""
     bar_start_mm: tuple[float, float]
     """Left end of the check bar: the centre of its 0 tick on the bar's centre line."""
     bar_end_mm: tuple[float, float]
@@ -79,26 +87,28 @@ class PrintLayout:
 
 
 def write_board(
-    board: CircleGridBoard,
+    board: Board,
     path: str | os.PathLike[str],
     *,
     page: str | Sequence[float] = "A4",
     orientation: Orientation = "auto",
     margin_mm: float = MARGIN_MM,
 ) -> PrintLayout:
-    """Write ``board`` to ``path`` as a printable page at exact scale; returns the layout.
+    """Write ``board`` (any type: a circle grid, a chessboard, a ChArUco board) to ``path``
+    as a printable page at exact scale; returns the layout. What is drawn is ``board.ink()``
+    (a circle grid's dots as each dot's circle).
 
     The format follows the suffix: ``.svg`` or ``.pdf`` (any case); anything else is a
     ValueError. ``page`` is a name from ``PAGE_SIZES`` (any case), a custom ``"WxH"`` in mm,
     or a (width, height) pair in mm; custom sizes are turned like standard ones.
     ``orientation`` is ``"portrait"`` (the short side across), ``"landscape"`` or ``"auto"``:
-    whichever fits, and if both do, the one that leaves the dot field more room (the larger
+    whichever fits, and if both do, the one that leaves the board's field more room (the larger
     of the two orientations' smaller slack around it), portrait on a tie. ``margin_mm`` is
     kept clear on every side.
 
     Raises BoardError when the board, with its axis marks, check bar and text, does not fit
     inside the margins (in the orientation asked for, or in either for ``"auto"``): the
-    message gives the dot field's extent, the page's usable size, the smallest standard
+    message gives the field's extent, the page's usable size, the smallest standard
     page that fits and the smaller board that fits this page (``smaller_board``). A board
     that states no diameter (``diameter=None``) is printed with dots half the distance
     between neighbouring dots (``CircleGridBoard.dots_mm``). An unwritable path raises
@@ -167,12 +177,12 @@ def _checked_page(
 
 
 def page_refusal(
-    board: CircleGridBoard,
+    board: AnyBoard,
     page: str | Sequence[float] = "A4",
     *,
     orientation: Orientation = "auto",
     margin_mm: float = MARGIN_MM,
-    offer: Callable[[CircleGridBoard], str] = in_words,
+    offer: Callable[[AnyBoard], str] = in_words,
 ) -> str | None:
     """None when ``board`` fits the page as ``write_board`` lays it out (same arguments),
     else the message ``write_board`` would raise, with the smaller board that fits this page
