@@ -19,7 +19,7 @@ import pytest
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.calibration_file import FILE_VERSION, field_digests
-from planarcal.errors import CalibrationFileError
+from planarcal.errors import BoardError, CalibrationFileError
 from planarcal.synth import paper_data
 from test_cli import _run
 
@@ -192,8 +192,8 @@ def test_files_of_versions_two_and_three_still_load(tmp_path: Path) -> None:
     cal = Calibration.load(V3_FILE)
     assert cal.robot_frame is not None and cal.robot_frame.plane_std_mm is not None
     assert cal.created == v3["created"]
-    again = Calibration.load(cal.save(tmp_path / "v4.json"))
-    assert json.loads((tmp_path / "v4.json").read_text())["version"] == FILE_VERSION == 4
+    again = Calibration.load(cal.save(tmp_path / "v5.json"))
+    assert json.loads((tmp_path / "v5.json").read_text())["version"] == FILE_VERSION == 5
     np.testing.assert_array_equal(
         again.image_to_world(PROBE_PX, frame="robot"), cal.image_to_world(PROBE_PX, frame="robot")
     )
@@ -308,11 +308,9 @@ def test_trust_edits_loads_a_deliberate_edit_and_save_stamps_it(
 def test_a_calibration_that_could_not_be_loaded_is_not_saved(tmp_path: Path) -> None:
     # A file's checks hold for what the API saves, so that every saved file loads.
     off = WORLD.copy()
-    off[3] += 0.5  # not a dot of the board
-    cal = Calibration(off, IMAGE, board=CircleGridBoard(), image_size=(1280, 720), lens="none")
-    with pytest.raises(CalibrationFileError, match=r"world point 3 .* is not a dot of the board"):
-        cal.save(tmp_path / "never.json")
-    assert not (tmp_path / "never.json").exists()
+    off[3] += 0.5  # not a dot of the board: refused at once, with no calibration to save
+    with pytest.raises(BoardError, match=r"world point 3 .* is not a dot of the board"):
+        Calibration(off, IMAGE, board=CircleGridBoard(), image_size=(1280, 720), lens="none")
     cal = Calibration(WORLD, IMAGE, image_size=(300, 200), lens="none")
     with pytest.raises(CalibrationFileError, match=r"image point 4 .* outside the 300 x 200 px"):
         cal.save(tmp_path / "never.json")

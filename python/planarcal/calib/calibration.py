@@ -49,16 +49,18 @@ from numpy.typing import ArrayLike, NDArray
 
 from planarcal import arguments
 from planarcal.calib import calibration_file, frame_size
-from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.board_points import match_board_points
+from planarcal.calib.boards import BOARD_TYPES, Board, is_board
 from planarcal.calib.calibration_file import FILE_FORMAT, FILE_VERSION, READS_VERSIONS
-from planarcal.calib.detect import detect_board
+from planarcal.calib.detection import detect_board
 from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX, ErrorBudget, with_budget
+from planarcal.calib.extrapolation import Extrapolation, extrapolation
 from planarcal.calib.leave_one_out import homography_leave_one_out
+from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_choice import (
     LENS_MARGIN,
     MAX_CENTRE_OFFSET,
     MIN_LENS_COVERAGE,
-    LensCandidate,
     LensChoice,
     fit_with_lens,
 )
@@ -138,21 +140,26 @@ class CalibrationSummary:
     small), no wrong description of the board can flatter it."""
     loo_max_px: float = float("nan")
     """Largest leave-one-out error in the image, px."""
+    covered_share: float = float("nan")
+    """The share of the image inside the outline (convex hull) of the calibration's points:
+    the rest is extrapolated (``Calibration.extrapolation``)."""
+    covered_std_mm: float = float("nan")
+    """The largest 1-sigma mapping error the calibration predicts at its own points, mm."""
+    image_std_mm: float = float("nan")
+    """The largest 1-sigma mapping error it predicts anywhere in the image, mm (where the
+    image is farthest from its points); NaN without an image size."""
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
     def __str__(self) -> str:
-        """The report `planarcal calibrate` prints (``planarcal.report.summary_text``), so
-        that ``print(cal.summary())`` reads as it does; a summary made by hand, of no
-        calibration, is its fields."""
+        """The figures in a few lines (the full report `planarcal calibrate` prints is the
+        report layer's: ``planarcal.report.summary_text(cal)``); a summary made by hand, of
+        no calibration, is its fields."""
         cal = self.__dict__.get("_calibration")
         if cal is None:
             return repr(self)
-        # The report is built on this module, so it is imported when a text is asked for.
-        from planarcal.report.summary import summary_text  # noqa: PLC0415
-
-        return summary_text(cal)
+        return "\n".join(cal.describe_lines(self))
 
 
 class Calibration:
@@ -178,11 +185,16 @@ class Calibration:
         solver: Solver = "normalized_dlt",
         refine: bool = True,
         lens: LensChoice = "auto",
-        board: CircleGridBoard | None = None,
+        board: Board | None = None,
         image_size: tuple[int, int] | None = None,
         intrinsics: CameraIntrinsics | None = None,
     ) -> None:
         world = _points(world_points, "world_points")
+        if board is not None and not is_board(board):
+            raise BoardError(
+                f"board must be one of planarcal's boards ({', '.join(BOARD_TYPES)}) or None, "
+                f"got {type(board).__name__}"
+            )
         image = _points(image_points, "image_points")
         if len(world) != len(image):
             raise ArgumentError(
@@ -196,6 +208,7 @@ class Calibration:
                 f"lens must be 'auto' or one of {', '.join(LENS_MODELS)}, got {lens!r}"
             )
         size = frame_size.checked_image_size(image_size)
+        ids = None if board is None else _point_ids(board, world, (1.0, 1.0))
         if intrinsics is not None:
             if not isinstance(intrinsics, CameraIntrinsics):
                 raise IntrinsicsError(
@@ -210,7 +223,9 @@ class Calibration:
                 )
         fit = fit_with_lens(world, image, solver, bool(refine), lens, size, intrinsics)
         fit = calibration_file.fit_as_loaded(fit, world, image, size, intrinsics)
-        self._init(world, image, fit, solver, bool(refine), board, size, intrinsics, (1.0, 1.0))
+        self._init(
+            world, image, fit, solver, bool(refine), board, size, intrinsics, (1.0, 1.0), ids=ids
+        )
 
     def _init(
         self,
@@ -219,18 +234,28 @@ class Calibration:
         fit: PlaneFit,
         solver: Solver,
         refine: bool,
-        board: CircleGridBoard | None,
+        board: Board | None,
         image_size: tuple[int, int] | None,
         intrinsics: CameraIntrinsics | None,
         world_scale: tuple[float, float],
         robot_frame: RobotFrame | None = None,
         created: str | None = None,
+        *,
+        ids: NDArray[np.intp] | None = None,
     ) -> None:
         self._world = world
         self._image = image
+        if board is not None and ids is None:
+            ids = _point_ids(board, world, world_scale)
+        self.point_ids: NDArray[np.intp] | None = ids
+        """The board's ids of the calibration's points (indices into
+        ``board.world_points()``, matching world_points and image_points), or None without a
+        board. A whole board has every id; a partial view those seen."""
+        if ids is not None:
+            ids.setflags(write=False)
         # The error bars' terms beyond the fit's covariance, recomputed from the points (files
         # do not store them); the plane then includes the model's bias in every uncertainty.
-        self._fit, budget = with_budget(fit, world, image, board, intrinsics)
+        self._fit, budget = with_budget(fit, world, image, board, intrinsics, ids)
         self.error_budget: ErrorBudget = budget
         """What std_mm covers beyond the fit's covariance (see calib.error_budget)."""
         self._h = np.array(fit.h, dtype=np.float64)
@@ -262,14 +287,21 @@ class Calibration:
         lens: LensChoice = "auto",
         intrinsics: CameraIntrinsics | None = None,
     ) -> Calibration:
-        """The calibration of a BoardDetection (planarcal.detect_board's result)."""
+        """The calibration of a BoardDetection (planarcal.detect_board's result) of any
+        board, whole or partial: its points are the ones found (``point_ids`` their ids)."""
+        board = getattr(detection, "board", None)
+        if not is_board(board) or not hasattr(detection, "world_points"):
+            raise ArgumentError(
+                f"detection must be a BoardDetection (planarcal.detect_board's result), got "
+                f"{type(detection).__name__}"
+            )
         return cls(
             detection.world_points(),
             detection.image_points,
             solver=solver,
             refine=refine,
             lens=lens,
-            board=detection.board,
+            board=board,
             image_size=detection.image_size,
             intrinsics=intrinsics,
         )
@@ -278,18 +310,18 @@ class Calibration:
     def from_image(
         cls,
         image: Any,
-        board: CircleGridBoard,
+        board: Board,
         *,
         solver: Solver = "normalized_dlt",
         refine: bool = True,
         lens: LensChoice = "auto",
         intrinsics: CameraIntrinsics | None = None,
-        polarity: str = "auto",
-        turned: bool = False,
+        **detector_options: Any,
     ) -> Calibration:
-        """Detects `board` in `image` (array or path) and calibrates from it (``polarity``
-        and ``turned`` as in detect_board)."""
-        detection = detect_board(image, board, polarity=polarity, turned=turned)
+        """Detects `board` (any type) in `image` (array or path) and calibrates from what is
+        found; ``detector_options`` go to the detector of the board's kind (a circle grid's
+        ``polarity`` and ``turned``, see detect_board)."""
+        detection = detect_board(image, board, **detector_options)
         return cls.from_detection(
             detection, solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
         )
@@ -301,10 +333,12 @@ class Calibration:
 
         A homography cannot see a board printed 1 % too large: every millimetre it reports
         would be 1 % short. Measure the board independently (the distance between the first
-        and last dot of a row and of a column with a steel rule, divided by the number of
-        gaps; or the printed 100 mm check bar, whose measured length / 100 times the nominal
-        pitch is the pitch) and pass the pitches in X (along a row) and Y (down a column);
-        Y defaults to X. Needs the board the calibration was made with. A registration to the
+        and last dot or corner of a row and of a column with a steel rule, divided by the
+        number of gaps; or the printed 100 mm check bar, whose measured length / 100 times the
+        nominal pitch is the pitch) and pass the pitches in X (along a row) and Y (down a
+        column); Y defaults to X. The pitch is ``board.pitch``: a circle grid's, a
+        chessboard's or ChArUco board's square. Needs the board the calibration was made
+        with. A registration to the
         robot is not carried over: it was fitted in the old millimetres (register again)."""
         if self.board is None:
             raise BoardError("rescaled needs the board the calibration was made from")
@@ -346,6 +380,7 @@ class Calibration:
             self.image_size,
             self.intrinsics,
             (sx, sy),
+            ids=self.point_ids,
         )
         return cal
 
@@ -405,6 +440,7 @@ class Calibration:
             intrinsics,
             self.world_scale,
             self.robot_frame,
+            ids=self.point_ids,
         )
         return cal
 
@@ -769,6 +805,75 @@ class Calibration:
             return np.full(len(self._world), np.nan)
         return np.asarray(np.sqrt(np.trace(cov, axis1=1, axis2=2)), dtype=np.float64)
 
+    @functools.cached_property
+    def extrapolation(self) -> Extrapolation | None:
+        """Where the calibration's points are in the image and what it predicts beyond them:
+        the share of the image their outline covers, and the largest 1-sigma mapping error
+        (mm, from the error bars of ``image_to_world(..., return_std=True)``, the pixel
+        itself exact) at the points and over the whole image, with where it is largest and a
+        grid of the image's 1-sigma for drawing. ``warning`` says when the rest of the image
+        is extrapolated well beyond the points' accuracy (a board in one corner of the
+        view). None without an image size."""
+        if self.image_size is None:
+            return None
+        return extrapolation(self._mapping_std_mm, self._image, self.image_size)
+
+    def _mapping_std_mm(self, px: F64) -> F64:
+        """The calibration's own 1-sigma (mm) at pixels `px` (the pixel exact): inf where a
+        pixel has no place on the plane (beyond the plane's horizon, as the points see it, or
+        beyond the lens model's reach)."""
+        out = np.full(len(px), np.inf)
+        if self.intrinsics is not None:
+            ideal = self.intrinsics.undistort_points(px)
+            feed = ideal
+        else:
+            ideal = self._fit.plane.lens.undistort(px, invalid="nan")
+            feed = px
+        # The points' side of the horizon: H^-1's third coordinate keeps their sign there.
+        points_ideal = (
+            self.intrinsics.undistort_points(self._image)
+            if self.intrinsics is not None
+            else self._fit.plane.lens.undistort(self._image, invalid="nan")
+        )
+        inv = self.H_inv
+        w = ideal @ inv[2, :2] + inv[2, 2]
+        w_points = points_ideal @ inv[2, :2] + inv[2, 2]
+        side = float(np.sign(np.nanmedian(w_points)))
+        ok = np.isfinite(ideal).all(axis=1) & (w * side > 0)
+        if ok.any():
+            try:
+                _, std = self._fit.plane.image_to_world_std(np.ascontiguousarray(feed[ok]), 0.0)
+                out[ok] = std
+            except (HomographyError, LensModelError, ArgumentError):
+                pass  # left as having no place
+        out[~np.isfinite(out)] = np.inf
+        return out
+
+    def describe_lines(self, summary: CalibrationSummary | None = None) -> list[str]:
+        """The calibration in a few lines: its board and points, its errors, its lens and,
+        for points that cover only part of the image, what the rest is predicted at (what
+        ``str(cal.summary())`` prints; the full report is planarcal.report.summary_text)."""
+        s = self.summary() if summary is None else summary
+        if self.board is None:
+            points = f"{s.n_points} points (no board recorded)"
+        else:
+            seen = len(self._world)
+            total = self.board.n_points
+            name = self.board.point_name
+            points = f"{self.board.describe()}: {seen} of its {total} {name}s"
+        lines = [
+            f"Calibration from {points}",
+            f"Reprojection error (px): mean {s.mean_px:.4f}, RMS {s.rms_px:.4f}, "
+            f"max {s.max_px:.4f}",
+            f"Leave-one-out error (mm): mean {s.loo_mean_mm:.4f}, RMS {s.loo_rms_mm:.4f}, "
+            f"max {s.loo_max_mm:.4f} ({s.loo_rms_px:.4f} px RMS)",
+            f"Lens: {self.lens_note}",
+        ]
+        ex = self.extrapolation
+        if ex is not None and ex.warning is not None:
+            lines.append(f"Warning: {ex.warning}")
+        return lines
+
     def summary(self) -> CalibrationSummary:
         s = self.stats
         dev = np.abs(self.deviations_mm)
@@ -778,6 +883,7 @@ class Calibration:
         pred = self.predicted_loo_std_mm
         pred = pred[np.isfinite(pred)]
         nan = float("nan")
+        ex = self.extrapolation
         summary = CalibrationSummary(
             n_points=len(self._world),
             solver=self.solver,
@@ -796,6 +902,9 @@ class Calibration:
             predicted_loo_rms_mm=float(np.sqrt(np.mean(pred**2))) if pred.size else nan,
             loo_rms_px=float(np.sqrt(np.mean(loo_px**2))) if loo_px.size else nan,
             loo_max_px=float(loo_px.max()) if loo_px.size else nan,
+            covered_share=nan if ex is None else ex.covered_share,
+            covered_std_mm=nan if ex is None else ex.covered_std_mm,
+            image_std_mm=nan if ex is None else ex.image_std_mm,
         )
         # What str(summary) describes; not a field, so no part of to_dict, == or repr.
         object.__setattr__(summary, "_calibration", self)
@@ -832,6 +941,7 @@ class Calibration:
                 c.world_scale,
                 c.robot_frame,
                 c.created,
+                ids=c.point_ids,
             )
             errors_px = cal.reprojection_errors_px
             calibration_file.check_residuals(errors_px, c.residuals, source)
@@ -908,3 +1018,12 @@ def _positive_mm(name: str, value: Any) -> float:
     if not (math.isfinite(v) and v > 0):
         raise BoardError(f"{name} must be a positive, finite number of mm, got {value!r}")
     return v
+
+
+def _point_ids(board: Board, world: F64, world_scale: tuple[float, float]) -> NDArray[np.intp]:
+    """The board's ids of the world points; BoardError naming a point that is no point of the
+    board (another board's description, or points of another board)."""
+    ids, problem = match_board_points(board, world, world_scale)
+    if problem is not None or ids is None:
+        raise BoardError(f"the points do not belong to the board: {problem}")
+    return ids

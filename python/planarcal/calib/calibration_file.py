@@ -12,7 +12,15 @@ image size, a dot diameter, a note). Files of every version are also checked for
 each value the others determine (a lens's standard errors, the registration's residuals, the
 world points as the board's dots) is re-derived and must agree, so that a file whose digest
 was recomputed still cannot carry a value its other fields contradict. Versions 1 to 3
-predate the digest and load on those checks alone."""
+predate the digest and load on those checks alone.
+
+Version 5 reads every board type: ``board`` is the board's ``to_dict()`` with its ``type``
+("circles", "chessboard" or "charuco"; planarcal.calib.boards.board_from_dict reads it), and
+``points.ids`` the board's ids of the points (0-based indices into the board's points: all of
+them for a whole board, those seen for a partial view; null without a board), re-derived
+from the world points on load. Its summary adds the points' coverage of the image and the
+predicted error beyond them (calib.extrapolation). A version 4 file's board is a circle grid
+(no ``type``); it loads as before."""
 
 from __future__ import annotations
 
@@ -30,14 +38,15 @@ from typing import TYPE_CHECKING, Any, TypeGuard
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from planarcal import _core
 from planarcal._core import RadialLens
 from planarcal.bounded_read import read_regular_file
-from planarcal.calib.board import MAX_BOARD_DOTS_PER_SIDE, CircleGridBoard
+from planarcal.calib.board import MAX_BOARD_DOTS_PER_SIDE
+from planarcal.calib.board_points import POINT_TOLERANCE_REL, match_board_points
+from planarcal.calib.boards import BOARD_TYPES, Board, board_from_dict
 from planarcal.calib.json_number import json_number
-from planarcal.calib.lens_choice import LensCandidate
+from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS
 from planarcal.calib.plane_fit import PlaneFit, plane_at
 from planarcal.camera import CameraIntrinsics
@@ -63,10 +72,37 @@ if TYPE_CHECKING:
 F64 = NDArray[np.float64]
 
 FILE_FORMAT = CALIBRATION_FORMAT
-FILE_VERSION = 4
-READS_VERSIONS = (1, 2, 3, 4)
+FILE_VERSION = 5
+READS_VERSIONS = (1, 2, 3, 4, 5)
 ROBOT_FRAME_SINCE = 3
 DIGEST_SINCE = 4
+BOARD_TYPES_SINCE = 5
+"""The first version whose board has a type (and points their ids)."""
+
+SUMMARY_SINCE_5 = ("covered_share", "covered_std_mm", "image_std_mm")
+"""The summary's fields a version 5 file adds (the points' coverage of the image)."""
+
+BOARD_FIELD_TYPES: dict[str, dict[str, str]] = {
+    "circles": {
+        "cols": "count",
+        "rows": "count",
+        "pitch_mm": "mm",
+        "diameter_mm": "mm or null",
+        "origin_marker": "bool",
+        "marker_diameter_mm": "mm or null",
+        "layout": "str",
+    },
+    "chessboard": {"cols": "count", "rows": "count", "square_mm": "mm", "origin_marker": "bool"},
+    "charuco": {
+        "squares_x": "count",
+        "squares_y": "count",
+        "square_mm": "mm",
+        "marker_mm": "mm",
+        "dictionary": "str",
+        "legacy": "bool or null",
+    },
+}
+"""Each board type's fields in a file and their JSON types (the board checks their values)."""
 
 FIELDS = (
     "format",
@@ -89,7 +125,8 @@ FIELDS = (
     "robot_frame",
     "digest",
 )
-"""Every field of a version 4 file, in the order written; older versions wrote some of them."""
+"""Every field of a version 4 or 5 file, in the order written; older versions wrote some of
+them."""
 ALWAYS = ("solver", "refine", "homography_world_mm_to_image_px", "points")
 """The fields every version has."""
 
@@ -131,10 +168,7 @@ IMAGE_MARGIN = 0.1
 """How far beyond the image (a share of its side) an image point may lie: dots detected lie
 inside it; an image size swapped or cut puts a board's points far outside."""
 
-POINT_TOLERANCE_REL = 1e-9
-"""How closely a world point must lie on its board dot, relative to the board's extent (the
-points are the dots' positions times world_scale: rounding is some 1e-16)."""
-
+__all__ = ["POINT_TOLERANCE_REL"]  # where it was; it lives with the matching, board_points
 # A dict or file with these is camera intrinsics (OpenCV's, ROS's, or CameraIntrinsics'
 # to_dict), not a calibration: the message says where it belongs.
 INTRINSICS_KEYS = ("camera_matrix", "cameraMatrix", "K")
@@ -158,7 +192,7 @@ class FileContents:
     fit: PlaneFit
     solver: Solver
     refine: bool
-    board: CircleGridBoard | None
+    board: Board | None
     image_size: tuple[int, int] | None
     intrinsics: CameraIntrinsics | None
     world_scale: tuple[float, float]
@@ -166,6 +200,7 @@ class FileContents:
     robot_frame: RobotFrame | None = None
     created: str | None = None
     version: int = FILE_VERSION
+    point_ids: NDArray[np.intp] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -180,14 +215,23 @@ class StoredResiduals:
     min_px: float
 
 
-def calibration_to_dict(cal: Calibration, *, summary: bool = True) -> dict[str, Any]:
+def calibration_to_dict(
+    cal: Calibration, *, summary: bool = True, version: int = FILE_VERSION
+) -> dict[str, Any]:
     """The versioned, JSON-ready form of `cal` (Calibration.to_dict), with its digest.
     ``summary=False`` leaves out the summary (its leave-one-out errors are the costly part)
-    and the digest: what check_consistent compares a file with. CalibrationFileError if a
-    value cannot be written (not a finite number), naming it."""
+    and the digest: what check_consistent compares a file with, in the form of the file's
+    ``version`` (a version 4 file's board has no type, its points no ids).
+    CalibrationFileError if a value cannot be written (not a finite number), naming it."""
+    typed = version >= BOARD_TYPES_SINCE
+    points: dict[str, Any] = {}
+    if typed:
+        points["ids"] = None if cal.point_ids is None else [int(i) for i in cal.point_ids]
+    points["world_mm"] = cal.world_points.tolist()
+    points["image_px"] = cal.image_points.tolist()
     content: dict[str, Any] = {
         "format": FILE_FORMAT,
-        "version": FILE_VERSION,
+        "version": version,
         "created": cal.created,
         "planarcal_version": _core.__version__,
         "solver": cal.solver,
@@ -200,14 +244,14 @@ def calibration_to_dict(cal: Calibration, *, summary: bool = True) -> dict[str, 
         "intrinsics": None if cal.intrinsics is None else cal.intrinsics.to_dict(),
         "world_scale": list(cal.world_scale),
         "image_size_px": None if cal.image_size is None else list(cal.image_size),
-        "board": None if cal.board is None else cal.board.to_dict(),
-        "points": {
-            "world_mm": cal.world_points.tolist(),
-            "image_px": cal.image_points.tolist(),
-        },
+        "board": None if cal.board is None else board_to_dict(cal.board, typed),
+        "points": points,
     }
     if summary:
-        content["summary"] = {k: json_number(v) for k, v in cal.summary().to_dict().items()}
+        figures = cal.summary().to_dict()
+        if not typed:
+            figures = {k: v for k, v in figures.items() if k not in SUMMARY_SINCE_5}
+        content["summary"] = {k: json_number(v) for k, v in figures.items()}
     content["robot_frame"] = None if cal.robot_frame is None else cal.robot_frame.to_dict()
     # A board that does not describe the points, or points beyond the image (the API takes
     # both: Calibration(world, image, board=..., image_size=...)), would be refused on load
@@ -228,6 +272,14 @@ def calibration_to_dict(cal: Calibration, *, summary: bool = True) -> dict[str, 
     if summary:
         content["digest"] = {"sha256": field_digests(content)}
     return content
+
+
+def board_to_dict(board: Board, typed: bool = True) -> dict[str, Any]:
+    """The board as a file holds it: its ``to_dict()`` with its ``type`` first (a circle
+    grid's to_dict has none); without it (`typed` False) as a version 4 file, whose board is
+    always a circle grid."""
+    data = {k: v for k, v in board.to_dict().items() if k != "type"}
+    return {"type": board.kind, **data} if typed else data
 
 
 def now_stamp() -> str:
@@ -293,9 +345,10 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
         raise CalibrationFileError(f"{source}: refine must be true or false, got {_show(refine)}")
     image_size = _image_size(data.get("image_size_px"), source)
     _check_in_image(image, image_size, source)
-    board = _board(data.get("board"), len(world), source)
+    board = _board(data.get("board"), len(world), version, source)
     fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
-    _check_on_board(board, world, world_scale, source)
+    point_ids = _check_on_board(board, world, world_scale, source)
+    _check_ids(points.get("ids"), point_ids, board, version, source)
     robot_frame = _robot_frame(data.get("robot_frame"), source)
     return FileContents(
         world,
@@ -311,6 +364,7 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
         robot_frame,
         _created(data, version, source),
         version,
+        point_ids,
     )
 
 
@@ -321,13 +375,18 @@ def check_consistent(cal: Calibration, data: dict[str, Any], source: str) -> Non
     of the same JSON type and to DERIVED_TOLERANCE_REL: a value edited, or one that overflows
     when re-derived (a file that could not be saved again), is named. Files of version 4 must
     also have every field to_dict writes, and no other, at every level."""
-    strict = data.get("version") == FILE_VERSION
-    derived = calibration_to_dict(cal, summary=False)
+    version = data.get("version")
+    strict = _is_int(version) and version >= DIGEST_SINCE
+    derived = calibration_to_dict(
+        cal, summary=False, version=version if _is_int(version) else FILE_VERSION
+    )
     for key, value in derived.items():
         if key in ("format", "version", "created", "planarcal_version") or key not in data:
             continue
         _agree(data[key], value, key, strict, source)
-    _check_summary(cal, data["summary"], strict, source)
+    _check_summary(
+        cal, data["summary"], strict, version if _is_int(version) else FILE_VERSION, source
+    )
 
 
 def check_digest(data: dict[str, Any], source: str) -> None:
@@ -379,41 +438,12 @@ def fit_as_loaded(
     return PlaneFit(plane, fit.h, fit.lens, fit.candidates, fit.note)
 
 
-def board_points_problem(
-    board: CircleGridBoard, world: F64, world_scale: tuple[float, float]
-) -> str | None:
-    """What is wrong with world points `world` as the dots of `board` (scaled by
-    `world_scale`, see Calibration.rescaled), or None: each must lie on one of the board's
-    dots, to POINT_TOLERANCE_REL of its extent. A board described otherwise than the points
-    (another pitch, layout or size) is another calibration."""
-    with np.errstate(all="ignore"):  # a huge pitch overflows: its dots are then no points'
-        dots = board.world_points()
-        nominal = world / np.asarray(world_scale, dtype=np.float64)
-    tolerance = POINT_TOLERANCE_REL * max(1.0, float(np.abs(dots).max()))
-    n = len(nominal)
-    if n <= len(dots) and np.all(np.abs(nominal - dots[:n]) <= tolerance):
-        return None  # the first n dots in order: a detection's
-    if np.isfinite(dots).all() and np.isfinite(nominal).all():
-        distance, index = cKDTree(dots).query(nominal)
-    else:  # a scale or pitch that overflows: no point is a dot
-        distance, index = np.full(n, np.inf), np.arange(n)
-    bad = np.flatnonzero(~(distance <= tolerance))
-    scale = "" if world_scale == (1.0, 1.0) else f" scaled by {list(world_scale)}"
-    if bad.size:
-        k = int(bad[0])
-        return (
-            f"world point {k} ({world[k][0]:g}, {world[k][1]:g}) mm is not a dot of the "
-            f"board ({board.describe()}{scale})"
-        )
-    # Each on its own dot: a scale of 1e300 would put them all on the first.
-    _, first = np.unique(index, return_index=True)
-    if len(first) < n:
-        k = int(np.setdiff1d(np.arange(n), first)[0])
-        return (
-            f"world point {k} ({world[k][0]:g}, {world[k][1]:g}) mm falls on the dot of "
-            f"another point of the board ({board.describe()}{scale})"
-        )
-    return None
+def board_points_problem(board: Board, world: F64, world_scale: tuple[float, float]) -> str | None:
+    """What is wrong with world points `world` as points of `board` (scaled by
+    `world_scale`, see Calibration.rescaled), or None: each must lie on its own point of the
+    board (calib.board_points). A board described otherwise than the points (another pitch,
+    layout or size) is another calibration."""
+    return match_board_points(board, world, world_scale)[1]
 
 
 def image_points_problem(image: F64, size: tuple[int, int] | None) -> str | None:
@@ -596,22 +626,58 @@ def _check_in_image(image: F64, size: tuple[int, int] | None, source: str) -> No
 
 
 def _check_on_board(
-    board: CircleGridBoard | None, world: F64, world_scale: tuple[float, float], source: str
-) -> None:
-    """CalibrationFileError unless the world points are the board's dots (scaled by
-    world_scale), and world_scale is 1 without a board (only rescaled sets it)."""
+    board: Board | None, world: F64, world_scale: tuple[float, float], source: str
+) -> NDArray[np.intp] | None:
+    """The board's ids of the world points (the board's points scaled by world_scale), or
+    None without a board; CalibrationFileError unless each is a point of the board, and
+    unless world_scale is 1 without a board (only rescaled sets it)."""
     if board is None:
         if world_scale != (1.0, 1.0):
             raise CalibrationFileError(
                 f"{source}: world_scale {list(world_scale)} without a board (a scale corrects "
                 "a board's pitch: it is [1.0, 1.0] without one)"
             )
-        return
-    problem = board_points_problem(board, world, world_scale)
-    if problem is not None:
+        return None
+    ids, problem = match_board_points(board, world, world_scale)
+    if problem is not None or ids is None:
         raise CalibrationFileError(
-            f"{source}: points.world_mm: {problem}: board (its pitch_mm, cols, rows or "
-            "layout), world_scale or the points were edited"
+            f"{source}: points.world_mm: {problem}: board (its size, pitch or layout), "
+            "world_scale or the points were edited"
+        )
+    return ids
+
+
+def _check_ids(
+    stored: Any,
+    ids: NDArray[np.intp] | None,
+    board: Board | None,
+    version: int,
+    source: str,
+) -> None:
+    """CalibrationFileError unless a version 5 file's points.ids are the ids of the board
+    points its world points lie on (null without a board); check_consistent names any other
+    difference (a missing or extra field)."""
+    if version < BOARD_TYPES_SINCE:
+        return
+    if ids is None or board is None:
+        if stored is not None:
+            raise CalibrationFileError(
+                f"{source}: points.ids {_show(stored)} without a board (board is null): the "
+                "board or the points were edited"
+            )
+        return
+    if not (isinstance(stored, list) and len(stored) == len(ids) and all(map(_is_int, stored))):
+        raise CalibrationFileError(
+            f"{source}: points.ids must be a list of {len(ids)} point ids (whole numbers), "
+            f"got {_show(stored)}"
+        )
+    differ = np.flatnonzero(np.asarray(stored, dtype=object) != ids)
+    if differ.size:
+        k = int(differ[0])
+        raise CalibrationFileError(
+            f"{source}: points.ids[{k}] is {_show(stored[k])} but world point {k} lies on "
+            f"{board.point_name} {int(ids[k])} of the board ({board.describe()}): board, "
+            "world_scale or the points were edited"
         )
 
 
@@ -637,40 +703,69 @@ def _image_size(size: Any, source: str) -> tuple[int, int] | None:
     return int(size[0]), int(size[1])
 
 
-def _board(board_data: Any, n_points: int, source: str) -> CircleGridBoard | None:
-    """The board, or None; its fields' JSON types checked (CircleGridBoard checks the rest),
-    at most MAX_BOARD_DOTS_PER_SIDE a side and with at least the file's points."""
+def _board(board_data: Any, n_points: int, version: int, source: str) -> Board | None:
+    """The board, or None: its type (a version 4 file's is a circle grid, and says none), its
+    fields' JSON types checked (the board checks their values, MAX_BOARD_DOTS_PER_SIDE a side
+    at most), and at least the file's points."""
     if board_data is None:
         return None
     if not isinstance(board_data, dict):
         raise CalibrationFileError(f"{source}: board must be a JSON object or null")
-    for key in ("cols", "rows"):
+    kind = board_data.get("type", "circles")
+    if version < BOARD_TYPES_SINCE and kind != "circles":
+        # (A version 4 file's check_consistent names a "type" even of "circles".)
+        raise CalibrationFileError(
+            f"{source}: a version {version} file's board is a circle grid, not "
+            f"{_show(kind)} (board types come with version {BOARD_TYPES_SINCE}): its version "
+            "was edited?"
+        )
+    if not (isinstance(kind, str) and kind in BOARD_FIELD_TYPES):
+        raise CalibrationFileError(
+            f"{source}: board.type must be one of {', '.join(BOARD_TYPES)}, got {_show(kind)}"
+        )
+    for key, want in BOARD_FIELD_TYPES[kind].items():
         value = board_data.get(key)
-        if not (_is_int(value) and 2 <= value <= MAX_BOARD_DOTS_PER_SIDE):
+        if value is None and key not in board_data and key in ("origin_marker", "layout"):
+            continue  # written since version 2 (their defaults before)
+        if not _json_type_is(value, want):
             raise CalibrationFileError(
-                f"{source}: board.{key} must be a whole number of dots from 2 to "
-                f"{MAX_BOARD_DOTS_PER_SIDE}, got {_show(value)}"
+                f"{source}: board.{key} must be {_TYPE_WORDS[want]}, got {_show(value)}"
             )
-    for key in ("pitch_mm", "diameter_mm", "marker_diameter_mm"):
-        value = board_data.get(key)
-        if not (_is_real(value) or (value is None and key != "pitch_mm")):
-            raise CalibrationFileError(
-                f"{source}: board.{key} must be a number of mm, got {_show(value)}"
-            )
-    if not isinstance(board_data.get("origin_marker", False), bool):
-        raise CalibrationFileError(f"{source}: board.origin_marker must be true or false")
-    if not isinstance(board_data.get("layout", "symmetric"), str):
-        raise CalibrationFileError(f"{source}: board.layout must be a string")
     try:
-        board = CircleGridBoard.from_dict(board_data)
+        board = board_from_dict(board_data)
     except BoardError as e:
         raise CalibrationFileError(f"{source}: board: {e}") from None
     if board.n_points < n_points:
         raise CalibrationFileError(
-            f"{source}: the board has {board.n_points} dots ({board.cols} x {board.rows}) "
-            f"but the file {n_points} points"
+            f"{source}: the board has {board.n_points} {board.point_name}s "
+            f"({board.describe()}) but the file {n_points} points"
         )
     return board
+
+
+_TYPE_WORDS = {
+    "count": f"a whole number from 2 to {MAX_BOARD_DOTS_PER_SIDE}",
+    "mm": "a number of mm",
+    "mm or null": "a number of mm or null",
+    "bool": "true or false",
+    "bool or null": "true, false or null",
+    "str": "a string",
+}
+
+
+def _json_type_is(value: Any, want: str) -> bool:
+    """Whether a board field's JSON value is of the kind `want` (a key of _TYPE_WORDS)."""
+    if want == "count":
+        return _is_int(value) and 2 <= value <= MAX_BOARD_DOTS_PER_SIDE
+    if want == "mm":
+        return _is_real(value)
+    if want == "mm or null":
+        return value is None or _is_real(value)
+    if want == "bool":
+        return isinstance(value, bool)
+    if want == "bool or null":
+        return value is None or isinstance(value, bool)
+    return isinstance(value, str)
 
 
 def _robot_frame(robot_data: Any, source: str) -> RobotFrame | None:
@@ -796,6 +891,11 @@ def _agree(stored: Any, derived: Any, path: str, strict: bool, source: str) -> N
                 f"{source}: {path} is {_show(stored)} where the file's other fields give "
                 f"{_show(derived)} (edited or corrupt)"
             )
+    elif _is_int(derived) and not _is_int(stored):
+        # A count or an id: a whole number, as written (3.0 is not point 3).
+        raise CalibrationFileError(
+            f"{source}: {path} must be a whole number, got {_show(stored)} (edited or corrupt)"
+        )
     else:
         _agree_number(stored, float(derived), path, source)
 
@@ -819,7 +919,9 @@ def _agree_number(stored: Any, derived: float, path: str, source: str) -> None:
         )
 
 
-def _check_summary(cal: Calibration, summary: dict[str, Any], strict: bool, source: str) -> None:
+def _check_summary(
+    cal: Calibration, summary: dict[str, Any], strict: bool, version: int, source: str
+) -> None:
     """The summary's fields a loaded calibration re-derives cheaply (its counts, names and
     largest deviations) must agree; the rest (leave-one-out errors, recomputed whenever a
     summary is asked for) must be numbers >= 0 or null. The reprojection errors are
@@ -828,6 +930,8 @@ def _check_summary(cal: Calibration, summary: dict[str, Any], strict: bool, sour
     from planarcal.calib.calibration import CalibrationSummary  # noqa: PLC0415
 
     names = [f.name for f in dataclasses.fields(CalibrationSummary)]
+    if strict and version < BOARD_TYPES_SINCE:
+        names = [n for n in names if n not in SUMMARY_SINCE_5]
     dev = np.abs(cal.deviations_mm)
     derived: dict[str, Any] = {
         "n_points": len(cal.world_points),

@@ -15,7 +15,8 @@ that says, and parts 10-70x, for three reasons the covariance cannot see:
   white: the calibration then maps every pixel with that field's error. It is computed here
   from the fitted model and the board's dots: each dot's disc carried through H and the lens
   (a fixed quadrature), its centroid in the image against the lens's image of its ideal
-  centroid.
+  centroid. A chessboard's or ChArUco board's corners are points, which the lens moves
+  with their image: they have none.
 * **The lens model's bias** (``lens_bias_px``). Where the lens model cannot follow the real
   lens (a centre assumed where it is not, tangential terms), the residuals are a smooth
   field that neighbouring dots share, and a pixel between them has it too; the detector's
@@ -45,7 +46,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.boards import Board
 from planarcal.calib.plane_fit import PlaneFit
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import BoardError
@@ -157,12 +158,17 @@ def shared_residual_sigma_px(world: F64, residuals_px: F64) -> float:
     return math.sqrt(shared) if shared > 0.0 else 0.0
 
 
-def _dot_diameters(board: CircleGridBoard | None, world: F64) -> F64:
-    """Each point's dot diameter, mm: the board's (its origin marker's included), or half
-    the points' spacing when the board or its dot size is unknown (a typical board)."""
-    if board is not None and board.n_points == len(world):
+def _dot_diameters(board: Board | None, ids: NDArray[np.intp] | None, world: F64) -> F64:
+    """Each point's dot diameter, mm: a circle grid's dots (its origin marker's included, for
+    the ids seen), 0 for a board whose points are corners (a corner is a point: the lens
+    moves it with its image, no area's centroid to bias), or half the points' spacing when
+    the board or its dot size is unknown (a typical circle grid)."""
+    if board is not None and ids is not None and len(ids) == len(world):
+        dot_diameters = getattr(board, "dot_diameters", None)
+        if dot_diameters is None:
+            return np.zeros(len(world))
         try:
-            return np.asarray(board.dot_diameters(), dtype=np.float64)
+            return np.asarray(dot_diameters(), dtype=np.float64)[ids]
         except BoardError:
             pass  # the dot size is unknown: estimate it below
     if len(world) < 2:
@@ -180,12 +186,14 @@ def error_budget(
     fit: PlaneFit,
     world: F64,
     image: F64,
-    board: CircleGridBoard | None,
+    board: Board | None,
     intrinsics: CameraIntrinsics | None,
+    ids: NDArray[np.intp] | None = None,
 ) -> ErrorBudget:
     """The budget of a calibration fitted as ``fit`` to ``world`` (mm) and ``image`` (the
-    measured pixels) on ``board`` (None: bare points, whose dots' size is guessed from their
-    spacing), with ``intrinsics`` when the lens is the camera's."""
+    measured pixels) on ``board``, whose points ``ids`` they are (None: bare points, whose
+    dots' size is guessed from their spacing), with ``intrinsics`` when the lens is the
+    camera's."""
     plane = fit.plane
     if intrinsics is not None:
         distort: Callable[[F64], F64] = intrinsics.distort_points
@@ -199,7 +207,11 @@ def error_budget(
         lens = plane.lens
         distort = lens.distort
         residuals = image - plane.world_to_image(world)
-    shift = dot_centroid_shift_px(fit.h, distort, world, _dot_diameters(board, world))
+    diameters = _dot_diameters(board, ids, world)
+    shift = np.zeros((len(world), 2))
+    dots = diameters > 0
+    if dots.any():
+        shift[dots] = dot_centroid_shift_px(fit.h, distort, world[dots], diameters[dots])
     finite = np.isfinite(shift).all(axis=1)
     dot = float(np.sqrt(np.mean(np.sum(shift[finite] ** 2, axis=1)) / 2.0)) if finite.any() else 0.0
     return ErrorBudget(dot, shared_residual_sigma_px(world, residuals))
@@ -213,11 +225,12 @@ def with_budget(
     fit: PlaneFit,
     world: F64,
     image: F64,
-    board: CircleGridBoard | None,
+    board: Board | None,
     intrinsics: CameraIntrinsics | None,
+    ids: NDArray[np.intp] | None = None,
 ) -> tuple[PlaneFit, ErrorBudget]:
     """``fit`` with its plane carrying the budget's model bias (every uncertainty it gives
     includes it), and the budget."""
-    budget = error_budget(fit, world, image, board, intrinsics)
+    budget = error_budget(fit, world, image, board, intrinsics, ids)
     plane = fit.plane.with_model_sigma(budget.model_sigma_px)
     return dataclasses.replace(fit, plane=plane), budget

@@ -5,15 +5,15 @@ cases where no lens model is fitted at all (intrinsics, the paper's estimator, n
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any, Literal
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core
-from planarcal.calib.json_number import json_number
+from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS, LensKind
 from planarcal.calib.plane_fit import PlaneFit, fit_homography_alone
 from planarcal.camera import CameraIntrinsics
@@ -26,35 +26,46 @@ LensChoice = Literal["auto", "none", "k1", "k1k2", "k1k2c"]
 
 # A richer lens model must lower the mean leave-one-out error by this fraction to be chosen.
 LENS_MARGIN = 0.01
-# The board must reach this fraction of the way from the image centre to its corners for the
-# distortion to be determined at all (a small central board sees almost none of it).
+# The points must span this fraction of the half-diagonal in distance from the image centre
+# for the distortion to be determined at all: a small central board sees almost none of it,
+# and a patch in one corner sees it only over its own span of radii (a distortion the same
+# over all its points is a scale, which the homography takes).
 MIN_LENS_COVERAGE = 0.35
 # A fitted distortion centre farther than this (in half-diagonals) from the image centre is
 # not a lens's: the model is fitting something else (a board that is not flat).
 MAX_CENTRE_OFFSET = 0.2
 
 
-@dataclasses.dataclass(frozen=True)
-class LensCandidate:
-    """One lens model tried by ``lens="auto"`` and what its leave-one-out error said."""
-
-    model: str
-    loo_mean_px: float
-    """Mean leave-one-out error in the image, px (NaN if the model could not be fitted)."""
-    sigma_px: float
-    """Residual standard deviation per coordinate, px."""
-    verdict: str
-    """"chosen", "not earned" (no clear gain over a simpler model) or why it was refused."""
-
-    def to_dict(self) -> dict[str, Any]:
-        return {k: json_number(v) for k, v in dataclasses.asdict(self).items()}
-
-
 def _coverage(image: F64, size: tuple[int, int]) -> float:
-    """How far the points reach from the image centre towards its corners (0 to 1)."""
+    """The span of distances from the image centre that the points cover, as a share of the
+    half-diagonal (0 to 1): from the nearest point of their convex hull (0 when the hull
+    holds the centre, as a whole board in view does) to the farthest point. A partial view
+    in a corner reaches the corner but spans only the radii of its patch."""
     w, h = size
     centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
-    return float(np.hypot(*(image - centre).T).max() / (0.5 * math.hypot(w, h)))
+    reach = float(np.hypot(*(image - centre).T).max())
+    return (reach - hull_distance(image, centre)) / (0.5 * math.hypot(w, h))
+
+
+def hull_distance(points: F64, at: F64) -> float:
+    """The distance from `at` to the convex hull of `points` (px), 0 inside it."""
+    pts = np.asarray(points, np.float64)
+    if len(pts) == 0:
+        return math.inf
+    if len(pts) < 3:
+        return float(np.hypot(*(pts - at).T).min())
+    hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2).astype(np.float64)
+    if len(hull) < 3:
+        return float(np.hypot(*(pts - at).T).min())
+    # Inside: every edge turns the same way round `at` (the hull is convex).
+    a, b = hull, np.roll(hull, -1, axis=0)
+    cross = (b[:, 0] - a[:, 0]) * (at[1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (at[0] - a[:, 0])
+    if (cross >= 0).all() or (cross <= 0).all():
+        return 0.0
+    ab = b - a
+    t = np.clip(np.sum((at - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-300), 0, 1)
+    nearest = a + t[:, None] * ab
+    return float(np.hypot(*(nearest - at).T).min())
 
 
 def fit_with_lens(
@@ -102,8 +113,9 @@ def fit_with_lens(
         note = f"lens model {lens} (asked for)"
         if coverage < MIN_LENS_COVERAGE:
             note += (
-                f"; the board reaches only {coverage:.0%} of the way to the image's corners, "
-                "too little to determine the distortion"
+                f"; the board reaches only {coverage:.0%} of the way from the image centre "
+                "to its corners (from its nearest point to its farthest), too little to "
+                "determine the distortion"
             )
         return PlaneFit(plane, plane.homography, lens, [], note)
     if coverage < MIN_LENS_COVERAGE:
@@ -114,8 +126,9 @@ def fit_with_lens(
             "none",
             [],
             f"no lens model: the board reaches only {coverage:.0%} of the way from the image "
-            f"centre to its corners (at least {MIN_LENS_COVERAGE:.0%} needed), too little to "
-            "determine the distortion; let the board fill more of the view",
+            f"centre to its corners (from its nearest point to its farthest; at least "
+            f"{MIN_LENS_COVERAGE:.0%} needed), too little to determine the distortion; let "
+            "the board fill more of the view",
         )
     return _select_lens(world, image, solver, refine, size)
 

@@ -6,21 +6,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal._core import RadialLens
+from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS, LensKind, LensModel
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import IntrinsicsError, LensModelError
 from planarcal.homography import Solver, estimate_homography
-
-if TYPE_CHECKING:
-    # Only a type here: lens_choice builds PlaneFits, so it imports this module.
-    from planarcal.calib.lens_choice import LensCandidate
 
 F64 = NDArray[np.float64]
 

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core, arguments
-from planarcal.errors import ImageError
+from planarcal.errors import ArgumentError, ImageError
 from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
 from planarcal.live.local_map import STEP_PX, centre_block
@@ -279,12 +279,17 @@ def locate_objects(
     ]
 
 
-def board_region_px(detection: Any, margin_pitch: float = 0.75) -> F64:
-    """The board's region in the image, for exclude_polygons: the dot grid's outline pushed
-    out by `margin_pitch` dot pitches (through the board's own homography)."""
+def board_region_px(detection: Any, margin_pitch: float = 0.5) -> F64:
+    """The board's region in the image, for exclude_polygons: the printed pattern's outline
+    (``board.ink().field``: a circle grid's dots, a chessboard's or ChArUco board's squares)
+    pushed out by `margin_pitch` pitches, through the homography of the points found (a
+    partial view's too: the whole board's outline, where it would be). (4, 2) px."""
     board = detection.board
-    m = margin_pitch * board.pitch
-    w, h = (board.cols - 1) * board.pitch, (board.rows - 1) * board.pitch
-    corners = np.array([[-m, -m], [w + m, -m], [w + m, h + m], [-m, h + m]])
+    margin = arguments.real("margin_pitch", margin_pitch)
+    if margin < 0:
+        raise ArgumentError(f"margin_pitch must be 0 or more, got {margin_pitch!r}")
+    m = margin * board.pitch
+    x0, y0, x1, y1 = board.ink().field
+    corners = np.array([[x0 - m, y0 - m], [x1 + m, y0 - m], [x1 + m, y1 + m], [x0 - m, y1 + m]])
     hom = estimate_homography(detection.world_points(), detection.image_points)
     return transform_points(hom, corners)

@@ -3,13 +3,17 @@ user can give: the dots the robot touched (their indices on the board), board po
 mm, or, N-point, the image positions (px) where the camera saw the part the robot placed,
 mapped through the calibration (their own 1-sigma then goes with them).
 
-A dot's index is the board's own numbering: k = row x cols + col, 0 the origin dot, row-major
-(``CircleGridBoard.world_points``); its position is the dot's centre in the calibration's
-world frame (the board's nominal coordinates times the printer-scale correction, if any)."""
+A point's index is the board's own id, 0-based, as ``board.world_points()`` numbers them
+(a circle grid's dot k = row x cols + col, 0 the origin dot; a chessboard's or ChArUco
+board's inner corner likewise, OpenCV's ids); its position is the point in the calibration's
+world frame (the board's nominal coordinates times the printer-scale correction, if any).
+
+The calibration is anything with a board, a world scale and an image-to-world mapping
+(``PlaneCalibration``): the robot layer is above the calibration's and does not import it."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,13 +22,21 @@ from planarcal import arguments
 from planarcal.errors import ArgumentError, BoardError
 from planarcal.robot.transform_fit import F64
 
-if TYPE_CHECKING:
-    # Only a type here: calibration imports this module to register itself.
-    from planarcal.calib.calibration import Calibration
+
+class PlaneCalibration(Protocol):
+    """What the pairs need of a calibration (planarcal.Calibration has it)."""
+
+    @property
+    def board(self) -> Any: ...
+
+    @property
+    def world_scale(self) -> tuple[float, float]: ...
+
+    def image_to_world(self, points_px: Any, *, return_std: bool = ...) -> Any: ...
 
 
 def plane_points(
-    calibration: Calibration,
+    calibration: PlaneCalibration,
     *,
     dots: ArrayLike | None = None,
     board_mm: ArrayLike | None = None,
@@ -60,7 +72,7 @@ def plane_points(
     return np.asarray(mm, dtype=np.float64), np.asarray(std, dtype=np.float64), None
 
 
-def board_extent(calibration: Calibration) -> F64 | None:
+def board_extent(calibration: PlaneCalibration) -> F64 | None:
     """The corners ((x0, y0), (x1, y1)) in board mm of the calibration's board's dots (the
     area a registration serves), or None for a calibration that records no board."""
     board = calibration.board
@@ -71,7 +83,7 @@ def board_extent(calibration: Calibration) -> F64 | None:
     return out
 
 
-def dot_positions(calibration: Calibration, dots: ArrayLike) -> F64:
+def dot_positions(calibration: PlaneCalibration, dots: ArrayLike) -> F64:
     """The centres (N, 2) in the calibration's board mm of the dots numbered ``dots`` (N,);
     ArgumentError for an index that is not a whole number or is off the board, BoardError for
     a calibration that records no board."""
@@ -82,7 +94,7 @@ def dot_positions(calibration: Calibration, dots: ArrayLike) -> F64:
     return out
 
 
-def dot_indices(calibration: Calibration, dots: ArrayLike) -> NDArray[np.int64]:
+def dot_indices(calibration: PlaneCalibration, dots: ArrayLike) -> NDArray[np.int64]:
     """The dot indices ``dots`` (N,) checked against the calibration's board: ArgumentError
     for an index that is not a whole number or is off the board, BoardError for a calibration
     that records no board."""
@@ -110,7 +122,8 @@ def dot_indices(calibration: Calibration, dots: ArrayLike) -> NDArray[np.int64]:
         if not 0 <= value < n:
             raise ArgumentError(
                 f"dot {i}: index {value} is off the board: a {board.cols} x {board.rows} board "
-                f"has dots 0 to {n - 1} (k = row x {board.cols} + column, 0 the origin dot)",
+                f"has {board.point_name}s 0 to {n - 1} (k = row x {board.cols} + column, 0 the "
+                f"origin {board.point_name})",
                 i,
             )
         index[i] = value
