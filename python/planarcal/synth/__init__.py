@@ -42,6 +42,7 @@ from planarcal.synth.corpus import BOARD_VARIANTS, BoardVariant, board_variant, 
 from planarcal.synth.effects import jpeg
 from planarcal.synth.marks import MARK_KINDS, MarkKind, printed_marks
 from planarcal.synth.objects import OBJECT_KINDS, ObjectKind, SceneObject, Silhouette
+from planarcal.synth.occluders import hand
 from planarcal.synth.paper import (
     PAPER_BOARD,
     PAPER_CAMERA,
@@ -75,6 +76,7 @@ __all__ = [
     "View",
     "board_variant",
     "board_variants",
+    "hand",
     "jpeg",
     "paper_scene",
     "printed_marks",

@@ -84,27 +84,32 @@ class _Pattern:
     def classify(self, x: F64, y: F64, radius: F64) -> tuple[NDArray[np.int8], NDArray[np.bool_]]:
         """The material at each board point (table, paper or ink; circles included) and
         whether a boundary may lie within ``radius`` of it (conservative)."""
-        i, j = self._atoms(x, y)
-        mat = self.grid[j, i]
+        shape = x.shape
+        x, y, radius = (np.asarray(v, np.float64).reshape(-1) for v in (x, y, radius))
         i_lo, j_lo = self._atoms(x - radius, y - radius)
         i_hi, j_hi = self._atoms(x + radius, y + radius)
-        total = (i_hi - i_lo + 1) * (j_hi - j_lo + 1)
-        same = np.zeros(x.shape, dtype=np.int64)
-        for m, table in enumerate(self.counts):
-            n = (
-                table[j_hi + 1, i_hi + 1]
-                - table[j_lo, i_hi + 1]
-                - table[j_hi + 1, i_lo]
-                + table[j_lo, i_lo]
-            )
-            same = np.where(mat == m, n, same)
-        edge = same < total
-        mat = mat.copy()
+        mat = self.grid[j_lo, i_lo]
+        edge = np.zeros(x.shape, dtype=bool)
+        # Points whose box meets several atoms: the material at the point itself, and an
+        # edge unless every atom of the box is of that material.
+        k = np.flatnonzero((i_lo != i_hi) | (j_lo != j_hi))
+        if k.size:
+            i_lo, i_hi, j_lo, j_hi = i_lo[k], i_hi[k], j_lo[k], j_hi[k]
+            i, j = self._atoms(x[k], y[k])
+            here = self.grid[j, i]
+            table = self.counts
+            same = np.zeros(k.size, dtype=np.int64)
+            for m in (_TABLE, _PAPER, _INK):
+                t = table[m]
+                n = t[j_hi + 1, i_hi + 1] - t[j_lo, i_hi + 1] - t[j_hi + 1, i_lo] + t[j_lo, i_lo]
+                same = np.where(here == m, n, same)
+            mat[k] = here
+            edge[k] = same < (i_hi - i_lo + 1) * (j_hi - j_lo + 1)
         for circle, material in self.circles:
             sd = circle.signed_distance(x, y)
             mat[sd < 0.0] = material
             edge |= np.abs(sd) < radius
-        return mat, edge
+        return mat.reshape(shape), edge.reshape(shape)
 
     def coverage(self, x: F64, y: F64, cell: tuple[F64, F64, F64, F64]) -> F64:
         """(N, 3): the exact fraction of each cell (centre (x, y), footprint spanned by the

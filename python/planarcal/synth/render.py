@@ -361,8 +361,9 @@ def render_scene(
 
     Partial views: choose a pose that leaves part of the board outside the image (the truth
     holds every point's projection, :meth:`RenderedScene.points_in_view` says which are
-    inside), lay an object over it (a flat ``SceneObject("hand", ...)`` with a ``grey``, or a
-    rectangle), or add ``glare``; :meth:`RenderedScene.points_visible` gives the ids left.
+    inside), lay objects over it (:func:`planarcal.synth.hand`'s parts, or any flat
+    SceneObject with a ``grey``), or add ``glare``; :meth:`RenderedScene.points_visible`
+    gives the ids left.
 
     ``supersample``: n for the n x n cells of each edge pixel (1-32; see the module's
     docstring). Cells are shaded by exact coverage, so 4 is already within 0.002 of the
