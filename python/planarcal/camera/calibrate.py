@@ -20,8 +20,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.boards import BOARD_TYPES, Board, is_board
 from planarcal.calib.detection import BoardDetection, detect_board
+from planarcal.calib.detector_options import detector_options
 from planarcal.camera.intrinsics import CameraIntrinsics
 from planarcal.camera.opencv_errors import last_line
 from planarcal.errors import BoardNotFoundError, ImageError, IntrinsicsError
@@ -30,6 +31,11 @@ __all__ = ["MAX_FOCAL_REL_STD", "calibrate_camera"]
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
+
+MIN_VIEW_POINTS = 6
+"""The fewest board points a view may give: 4 fix its homography, and a view's pose and its
+share of the intrinsics need more (a partial view of fewer adds no information, only
+risk)."""
 
 MAX_FOCAL_REL_STD = 0.01
 """calibrate_camera refuses a result whose focal length is this uncertain (1 sigma, relative to
@@ -40,7 +46,7 @@ puts every height off by about as much."""
 
 def calibrate_camera(
     views: Sequence[Any],
-    board: CircleGridBoard,
+    board: Board,
     *,
     fix_aspect_ratio: bool = False,
     zero_tangent: bool = False,
@@ -49,8 +55,11 @@ def calibrate_camera(
     """Estimate a camera's intrinsics from several views of a flat board (Zhang's method, as
     cv2.calibrateCamera).
 
-    ``views``: images (arrays or paths) or BoardDetection objects (of ``board``), all of one
-    image size; each image is searched with detect_board. ``fix_aspect_ratio`` fixes fx = fy
+    ``views``: images (arrays or paths) or BoardDetection objects (of ``board``: a circle
+    grid, chessboard or ChArUco board), all of one image size; each image is searched with
+    detect_board. A view may show part of the board (a detection's ``ids``: each view's
+    points are those it found, MIN_VIEW_POINTS at least), which also lets views reach the
+    image's corners, where the distortion is otherwise unknown. ``fix_aspect_ratio`` fixes fx = fy
     (square pixels), ``zero_tangent`` fixes p1 = p2 = 0, ``rational`` fits OpenCV's rational
     model (8 coefficients instead of 5).
 
@@ -78,7 +87,7 @@ def calibrate_camera(
 # The views
 
 
-def _checked_views(views: Sequence[Any], board: CircleGridBoard) -> list[Any]:
+def _checked_views(views: Sequence[Any], board: Board) -> list[Any]:
     """The views as a list, or IntrinsicsError for a single view, another kind of board, or
     too few views."""
     if isinstance(views, str | os.PathLike | np.ndarray | BoardDetection):
@@ -86,8 +95,11 @@ def _checked_views(views: Sequence[Any], board: CircleGridBoard) -> list[Any]:
             "views must be a list of images, paths or board detections (one per view), got a "
             f"single {type(views).__name__}"
         )
-    if not isinstance(board, CircleGridBoard):
-        raise IntrinsicsError(f"board must be a CircleGridBoard, got {type(board).__name__}")
+    if not is_board(board):
+        raise IntrinsicsError(
+            f"board must be one of planarcal's boards ({', '.join(BOARD_TYPES)}), got "
+            f"{type(board).__name__}"
+        )
     views = list(views)
     if len(views) < 3:
         raise IntrinsicsError(
@@ -97,7 +109,7 @@ def _checked_views(views: Sequence[Any], board: CircleGridBoard) -> list[Any]:
     return views
 
 
-def _detect_views(views: list[Any], board: CircleGridBoard) -> list[BoardDetection]:
+def _detect_views(views: list[Any], board: Board) -> list[BoardDetection]:
     """The board's detection in each view, all of one image size."""
     detections: list[BoardDetection] = []
     for i, view in enumerate(views):
@@ -109,11 +121,17 @@ def _detect_views(views: list[Any], board: CircleGridBoard) -> list[BoardDetecti
                 f"{_view_name(view, i)} is {w} x {h} px but view 0 is {w0} x {h0} px: all views "
                 "must come from the same camera at the same resolution"
             )
+        if len(det.ids) < MIN_VIEW_POINTS:
+            raise IntrinsicsError(
+                f"{_view_name(view, i)} shows {len(det.ids)} {board.point_name}s of the board: "
+                f"a view needs at least {MIN_VIEW_POINTS}; leave it out or take it again with "
+                "more of the board in view"
+            )
         detections.append(det)
     return detections
 
 
-def _detection(view: Any, index: int, board: CircleGridBoard) -> BoardDetection:
+def _detection(view: Any, index: int, board: Board) -> BoardDetection:
     """The view itself if it is a detection of ``board``, else detect_board's in it; errors
     name the view."""
     if isinstance(view, BoardDetection):
@@ -124,8 +142,10 @@ def _detection(view: Any, index: int, board: CircleGridBoard) -> BoardDetection:
             )
         return view
     try:
-        # Each view has its own pose: a board turned in one of them is no mistake.
-        return detect_board(view, board, turned=True)
+        # Each view has its own pose: a board turned in one of them is no mistake (where the
+        # board's detector would otherwise refuse it).
+        turned = {"turned": True} if "turned" in detector_options(board.kind) else {}
+        return detect_board(view, board, **turned)
     except BoardNotFoundError as e:
         raise BoardNotFoundError(f"{_view_name(view, index)}: {e}", e.diagnostics) from None
     except ImageError as e:
@@ -148,14 +168,15 @@ class _ViewPoints:
     size: tuple[int, int]
 
     @classmethod
-    def of(cls, board: CircleGridBoard, detections: list[BoardDetection]) -> _ViewPoints:
+    def of(cls, board: Board, detections: list[BoardDetection]) -> _ViewPoints:
         # calibrateCamera takes float32 points only (Point3f / Point2f): 6e-5 px of rounding
-        # at 1280 px, far below any detection's noise.
-        world = board.world_points()
-        object_points = [
-            np.column_stack([world, np.zeros(len(world))]).reshape(-1, 1, 3).astype(np.float32)
-            for _ in detections
-        ]
+        # at 1280 px, far below any detection's noise. Each view's own points: those it found.
+        object_points = []
+        for d in detections:
+            world = board.world_points()[d.ids]
+            object_points.append(
+                np.column_stack([world, np.zeros(len(world))]).reshape(-1, 1, 3).astype(np.float32)
+            )
         image_points = [d.image_points.reshape(-1, 1, 2).astype(np.float32) for d in detections]
         return cls(object_points, image_points, detections[0].image_size)
 

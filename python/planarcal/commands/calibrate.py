@@ -14,8 +14,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal.calib.boards import Board
 from planarcal.calib.calibration import Calibration
-from planarcal.calib.detect import detect_board
+from planarcal.calib.detection import detect_board
+from planarcal.calib.detector_options import detector_options
 from planarcal.camera import CameraIntrinsics
 from planarcal.commands import board_arguments, board_from, count, not_a_folder, positive
 from planarcal.errors import BoardNotFoundError, ImageError
@@ -68,15 +70,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--polarity",
-        default="auto",
+        default=None,
         choices=("auto", "dark", "light"),
-        help="dark dots on light paper, light on dark, or try both",
+        help="circle grids: dark dots on light paper, light on dark, or try both (auto, the "
+        "default)",
     )
     p.add_argument(
         "--turned",
         action="store_true",
-        help="accept a board without an origin marker that lies turned by 90 degrees in the "
-        "image (refused by default: usually --cols and --rows are swapped)",
+        default=None,
+        help="circle grids and chessboards: accept a board without an origin marker that lies "
+        "turned by 90 degrees in the image (refused by default: usually --cols and --rows "
+        "are swapped)",
     )
     p.add_argument(
         "--lens",
@@ -98,8 +103,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=_pitches,
         default=None,
         metavar="X[,Y]",
-        help="the board's pitch in mm as measured with a rule (X along a row, Y down a "
-        "column): corrects the printer's scale",
+        help="the board's pitch in mm as measured with a rule (the dots' or the squares', X "
+        "along a row, Y down a column): corrects the printer's scale",
     )
     scale.add_argument(
         "--check-bar",
@@ -112,6 +117,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--report", type=Path, default=None, help="directory for the tables (CSV) and figures (PNG)"
     )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+
+
+def _detector_options(args: argparse.Namespace, board: Board) -> dict[str, object]:
+    """``--polarity`` and ``--turned`` for the detector of the board's type, where it takes
+    them; typed for a board whose detector does not, a malformed command line (exit 2)."""
+    takes = detector_options(board.kind)
+    options: dict[str, object] = {}
+    for name, option in (("polarity", "--polarity"), ("turned", "--turned")):
+        value = getattr(args, name)
+        if value is None:
+            continue
+        if name not in takes:
+            applies = ", ".join(f"--{o}" for o in takes) or "none of these options"
+            raise argparse.ArgumentError(
+                None,
+                f"{option} does not apply to --type {board.kind} (its detector takes {applies})",
+            )
+        options[name] = value
+    return options
 
 
 def _pitches(text: str) -> tuple[float, ...]:
@@ -131,9 +155,10 @@ def main(args: argparse.Namespace) -> int:
     intrinsics = None
     if args.intrinsics is not None:
         intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
+    options = _detector_options(args, board)
     image = _read_image(args)
     try:
-        detection = detect_board(image, board, polarity=args.polarity, turned=args.turned)
+        detection = detect_board(image, board, **options)
     except BoardNotFoundError as e:
         if args.report is not None:
             # What the search saw is what it takes to fix the picture: draw it, then fail.

@@ -62,13 +62,23 @@ def _description(cal: Calibration) -> list[str]:
     its millimetres go."""
     s = cal.summary()
     lines = [f"created {cal.created}"]
-    if cal.board is not None:
-        lines.append(f"board: {cal.board.describe()}")
+    board = cal.board
+    if board is not None:
+        lines.append(f"board ({board.kind}): {board.describe()}")
+        whole = "the whole board" if s.n_points == board.n_points else "a partial view"
+        lines.append(f"points: {s.n_points} of its {board.n_points} {board.point_name}s ({whole})")
     if cal.image_size is not None:
         lines.append(f"image: {cal.image_size[0]} x {cal.image_size[1]} px")
     lines.append(
         f"leave-one-out error: {s.loo_rms_px:.3g} px RMS ({verdict(s)}), {s.n_points} points"
     )
+    ex = cal.extrapolation
+    if ex is not None:
+        lines.append(
+            f"coverage: the points cover {ex.covered_share:.0%} of the image; predicted 1-sigma "
+            f"{ex.covered_std_mm:.3g} mm at them, {ex.image_std_mm:.3g} mm at worst in the image"
+            + (" (extrapolated)" if ex.warning is not None else "")
+        )
     frame = cal.robot_frame
     if frame is None:
         lines.append("frame: the board's (no robot registration)")

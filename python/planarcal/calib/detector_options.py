@@ -1,0 +1,20 @@
+"""Which options the detector of each board kind takes (a circle grid's ``polarity`` and
+``turned``, a chessboard's ``turned``, ...): read from the detector's own signature, so that
+the command line and the camera's calibration offer an option only where it applies, and a
+new detector's options need no table here."""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+
+from planarcal.calib.detection import DETECTORS
+
+
+def detector_options(kind: str) -> tuple[str, ...]:
+    """The keyword options the detector of board kind `kind` names (not its ``**options``),
+    in its signature's order; KeyError for a kind with no detector."""
+    module, name = DETECTORS[kind].split(":")
+    detector = getattr(importlib.import_module(module), name)
+    params = inspect.signature(detector).parameters.values()
+    return tuple(p.name for p in params if p.kind is inspect.Parameter.KEYWORD_ONLY)
