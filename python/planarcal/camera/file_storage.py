@@ -3,7 +3,9 @@
 Written as OpenCV's calibration sample writes them; read from that layout and the common
 variants (other node names, ROS-style matrices, plain lists). The intrinsics themselves are
 :class:`planarcal.camera.intrinsics.CameraIntrinsics`, whose ``save_yaml`` and ``load_yaml``
-call :func:`write_intrinsics` and :func:`read_intrinsics`.
+call :func:`write_intrinsics` and :func:`read_intrinsics`: this module writes any object
+with the intrinsics' fields (``IntrinsicsFields``) and reads into whatever constructor it is
+given, so it imports no model (the model imports it, without a loop).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import os
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 import cv2
 import numpy as np
@@ -26,11 +28,31 @@ from planarcal.errors import IntrinsicsError
 from planarcal.file_formats import CALIBRATION_FORMAT
 from planarcal.files import atomic_write
 
-if TYPE_CHECKING:
-    from planarcal.camera.intrinsics import CameraIntrinsics
-
 F64 = NDArray[np.float64]
 T = TypeVar("T")
+
+
+class IntrinsicsFields(Protocol):
+    """What a file is written from (planarcal.camera.CameraIntrinsics has it)."""
+
+    @property
+    def matrix(self) -> F64: ...
+
+    @property
+    def dist_coeffs(self) -> F64: ...
+
+    @property
+    def image_size(self) -> tuple[int, int]: ...
+
+    @property
+    def rms_px(self) -> float | None: ...
+
+    @property
+    def n_views(self) -> int | None: ...
+
+    @property
+    def per_view_rms_px(self) -> tuple[float, ...] | None: ...
+
 
 # OpenCV's YAML/XML node names, the calibration sample's first.
 _MATRIX_NODES = ("camera_matrix", "cameraMatrix", "K")
@@ -81,7 +103,7 @@ _Found = tuple[str, Any]
 # Writing
 
 
-def write_intrinsics(intrinsics: CameraIntrinsics, path: str | os.PathLike[str]) -> Path:
+def write_intrinsics(intrinsics: IntrinsicsFields, path: str | os.PathLike[str]) -> Path:
     """Write the intrinsics as OpenCV's calibration sample does, atomically (see
     CameraIntrinsics.save_yaml); the path written."""
     target = Path(path)

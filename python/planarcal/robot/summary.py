@@ -5,17 +5,113 @@ pairing).
 The quality is judged on two figures, the worse deciding: the leave-one-out RMS (how well the
 touches agree with each other) and the map's own 1-sigma at the worst corner of the area it
 serves, the board (how well their layout fixes the map where the parts will be: touches in a
-cluster or along one edge fit each other well and still turn the map at the far corner)."""
+cluster or along one edge fit each other well and still turn the map at the far corner).
+
+The registration is anything with a fitted map's figures (``Registration``, which
+planarcal.robot.RobotFrame has): this module reads them and imports no registration, so
+``RobotFrame.summary`` describes itself through it without a loop of imports."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
-if TYPE_CHECKING:
-    # Only a type here: registration imports this module to describe itself.
-    from planarcal.robot.registration import RobotFrame
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+
+class PlaneHeightFigures(Protocol):
+    """What the headline reads of the plane's height and tilt (planarcal.robot.PlaneHeight)."""
+
+    @property
+    def height_mm(self) -> float: ...
+
+    @property
+    def tilt_deg(self) -> float: ...
+
+    @property
+    def tilt_mm(self) -> float: ...
+
+
+class Registration(Protocol):
+    """What the summary reads of a registration (planarcal.robot.RobotFrame has it all)."""
+
+    @property
+    def model(self) -> str: ...
+
+    @property
+    def reflected(self) -> bool: ...
+
+    @property
+    def handedness(self) -> str | None: ...
+
+    @property
+    def plane_to_robot(self) -> F64: ...
+
+    @property
+    def rotation_deg(self) -> float | None: ...
+
+    @property
+    def scale(self) -> float | None: ...
+
+    @property
+    def plane_mm(self) -> F64: ...
+
+    @property
+    def robot_mm(self) -> F64: ...
+
+    @property
+    def residuals_mm(self) -> F64: ...
+
+    @property
+    def leave_one_out_mm(self) -> F64: ...
+
+    @property
+    def rms_mm(self) -> float: ...
+
+    @property
+    def max_mm(self) -> float: ...
+
+    @property
+    def leave_one_out_rms_mm(self) -> float: ...
+
+    @property
+    def outliers(self) -> tuple[int, ...]: ...
+
+    @property
+    def dropped_outliers(self) -> bool: ...
+
+    @property
+    def outlier_threshold_mm(self) -> float: ...
+
+    @property
+    def plane(self) -> PlaneHeightFigures | None: ...
+
+    @property
+    def warnings(self) -> tuple[str, ...]: ...
+
+    @property
+    def dots(self) -> tuple[int, ...] | None: ...
+
+    @property
+    def work_area_mm(self) -> F64 | None: ...
+
+    @property
+    def used(self) -> NDArray[np.bool_]: ...
+
+    @property
+    def noise_mm(self) -> float: ...
+
+    @property
+    def corner_std_mm(self) -> float: ...
+
+    def std_mm(self, points_mm: Any) -> F64: ...
+
+    def pair_name(self, index: int) -> str: ...
+
 
 # Leave-one-out RMS (mm) up to which a registration is called excellent, good, usable.
 EXCELLENT_MM = 0.1
@@ -25,13 +121,13 @@ USABLE_MM = 1.0
 SCALE_WARNING = 0.005
 
 
-def judged_mm(frame: RobotFrame) -> float:
+def judged_mm(frame: Registration) -> float:
     """The figure the quality is read from (mm): the larger of the leave-one-out RMS and the
     map's own 1-sigma at the worst corner of the area it serves (``corner_std_mm``)."""
     return max(frame.leave_one_out_rms_mm, frame.corner_std_mm)
 
 
-def quality(frame: RobotFrame) -> str:
+def quality(frame: Registration) -> str:
     """The fit in a word, by ``judged_mm``: "excellent", "good", "usable", "poor", or
     "unchecked" (too few points for a leave-one-out error)."""
     judged = judged_mm(frame)
@@ -44,7 +140,7 @@ def quality(frame: RobotFrame) -> str:
     return "usable" if judged <= USABLE_MM else "poor"
 
 
-def registration_summary(frame: RobotFrame, lines: Sequence[int] | None = None) -> str:
+def registration_summary(frame: Registration, lines: Sequence[int] | None = None) -> str:
     """The transform, the residual table (with each pair's file line, if given) and the
     quality in words."""
     lines_out = [_headline(frame), _transform(frame), "", *_table(frame, lines), ""]
@@ -53,7 +149,7 @@ def registration_summary(frame: RobotFrame, lines: Sequence[int] | None = None) 
     return "\n".join(lines_out)
 
 
-def _headline(frame: RobotFrame) -> str:
+def _headline(frame: Registration) -> str:
     used = int(frame.used.sum())
     parts = [f"{frame.model} registration from {used} of {len(frame.plane_mm)} point pairs"]
     source = "as given" if frame.handedness is not None else "from the touches"
@@ -74,7 +170,7 @@ def _headline(frame: RobotFrame) -> str:
     return "; ".join(parts)
 
 
-def _transform(frame: RobotFrame) -> str:
+def _transform(frame: Registration) -> str:
     """The fitted map in numbers: robot = linear x board + translation."""
     tx, ty = frame.plane_to_robot[:2, 2]
     translation = f"translation ({tx:.3f}, {ty:.3f}) mm"
@@ -88,13 +184,13 @@ def _transform(frame: RobotFrame) -> str:
     )
 
 
-def _hand(frame: RobotFrame) -> str:
+def _hand(frame: Registration) -> str:
     # A board seen from the front has y clockwise from x: a mirrored map is a robot frame
     # that is right-handed with z up.
     return "right-handed (z up)" if frame.reflected else "left-handed (z up)"
 
 
-def _table(frame: RobotFrame, lines: Sequence[int] | None) -> list[str]:
+def _table(frame: Registration, lines: Sequence[int] | None) -> list[str]:
     name_column = "dot" if frame.dots is not None else "touch"
     line_head = "" if lines is None else f" {'line':>5}"
     rows = [
@@ -132,7 +228,7 @@ def _table(frame: RobotFrame, lines: Sequence[int] | None) -> list[str]:
     return rows
 
 
-def _verdict(frame: RobotFrame) -> list[str]:
+def _verdict(frame: Registration) -> list[str]:
     out: list[str] = []
     if frame.outliers:
         names = ", ".join(frame.pair_name(i) for i in frame.outliers)
@@ -161,7 +257,7 @@ def _verdict(frame: RobotFrame) -> list[str]:
     return out
 
 
-def _rating(frame: RobotFrame) -> str:
+def _rating(frame: Registration) -> str:
     """The quality in a sentence: the figure that decided it and what to do about it."""
     loo, corner = frame.leave_one_out_rms_mm, frame.corner_std_mm
     if not math.isfinite(loo):
