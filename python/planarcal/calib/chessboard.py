@@ -8,9 +8,12 @@ one is black (OpenCV's ``pattern.png``).
 
 A plain chessboard looks the same turned by 180 degrees (and, when square, by 90), so its
 orientation is a guess unless ``origin_marker=True``: three dots in the squares about the
-board's middle, in the style of OpenCV's ``CALIB_CB_MARKER`` boards (``gen_pattern.py -T
-radon_checkerboard -m ...``), a white dot in a black square or a black dot in a white one.
-The marker fixes the reading, and so a part of the board in view identifies itself.
+board's middle, as OpenCV's ``CALIB_CB_MARKER`` boards have them (``gen_pattern.py -T
+radon_checkerboard -m ...``): a white dot in a black square, the L's corner, and black dots in
+the white squares right of it and below it. OpenCV's ``findChessboardCornersSB`` with
+``CALIB_CB_MARKER`` reads such a board (checked on renders) with its corner 0 at planarcal's
+corner 0 (its order is planarcal's transposed: it runs down the columns first). The marker
+fixes the reading, and so a part of the board in view identifies itself.
 """
 
 from __future__ import annotations
@@ -30,8 +33,10 @@ F64 = NDArray[np.float64]
 MAX_CORNERS_PER_SIDE = 1000
 """The most inner corners a side may have (as a circle grid's dots)."""
 
-MARKER_DOT = 0.5
-"""The marker dots' diameter, in squares."""
+MARKER_DOT = 0.4
+"""The marker dots' diameter, in squares (OpenCV's gen_pattern.py draws 0.34): small enough
+to stay clear of the windows the corners are refined in (0.42 of a square about each
+corner), large enough to be read at a few pixels across."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,12 +110,16 @@ class ChessboardBoard:
         return (i + j) % 2 == 0
 
     def marker_cells(self) -> tuple[tuple[int, int], ...]:
-        """The squares (i, j) of the marker's three dots, the origin's first: an L about the
-        board's middle, the origin square at its corner (empty without a marker)."""
+        """The squares (i, j) of the marker's three dots, the origin's first: a black square
+        about the board's middle with a white dot, and the white squares right of it and below
+        it with black dots (an L opening along the board's X and Y, as OpenCV's
+        ``CALIB_CB_MARKER`` boards; empty without a marker)."""
         if not self.origin_marker:
             return ()
-        i0, j0 = (self.cols + 1) // 2, (self.rows + 1) // 2
-        return ((i0, j0), (i0 - 1, j0), (i0, j0 - 1))
+        i0, j0 = self.cols // 2, self.rows // 2
+        if not self.square_is_black(i0, j0):
+            i0 -= 1 if i0 > 0 else -1
+        return ((i0, j0), (i0 + 1, j0), (i0, j0 + 1))
 
     def ink(self) -> BoardInk:
         s = float(self.square)
