@@ -321,3 +321,62 @@ def test_a_720p_render_takes_a_few_seconds(board: ChessboardBoard | CharucoBoard
     start = time.process_time()  # this process's CPU time: the machine is shared
     render_scene(synth.PAPER_CAMERA, pose, board=board, blur_sigma_px=0.8, noise_sigma=2.0)
     assert time.process_time() - start < 4.0
+
+
+# ----------------------------------------------------------------------------- the corpus
+
+SMALL_VARIANTS = [
+    name
+    for kind in ("chessboard", "charuco")
+    for name in synth.VARIANTS_BY_KIND[kind]
+    if "4k" not in name  # the 4K renders take a few seconds each: one test below
+]
+
+
+@pytest.mark.parametrize("name", SMALL_VARIANTS)
+def test_chessboard_and_charuco_variants_hold_their_truth(name: str) -> None:
+    """Each variant's truth is its scene's, its visible points are inside the image and
+    unhidden, and at every visible corner the image is a saddle: of the four squares about
+    it, those across from each other are alike and those beside each other differ."""
+    v = synth.board_variant(name)
+    assert v.board.kind in ("chessboard", "charuco")
+    np.testing.assert_array_equal(v.truth_px, v.scene.points_px)
+    assert v.enlarged.shape == v.visible.shape == (v.board.n_points,)
+    assert not v.enlarged.any()
+    assert v.visible.sum() >= 8
+    partial = "hand" in name or "cut_off" in name or "glare" in name
+    assert v.visible.all() != partial, name
+    grey = (v.image if v.image.ndim == 2 else v.image.mean(axis=2)).astype(np.float64)
+    pts = v.board.world_points()
+    step = 0.25 * float(v.board.pitch)
+    if isinstance(v.board, CharucoBoard):  # within the white margin about the markers
+        step = 0.25 * (float(v.board.square) - float(v.board.marker))
+    clear = v.visible.copy()
+    for x, y, r in v.scene.glare:  # visible near glare, but brightened unevenly
+        clear &= np.hypot(*(v.truth_px - [x, y]).T) > 2.5 * r
+    for k in np.flatnonzero(clear):
+        quads = pts[k] + step * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+        at = np.rint(v.scene.project(_to_table(v, quads))).astype(int)
+        a, b, c, d = (grey[y, x] for x, y in at)
+        contrast = abs(a + c - b - d) / 2.0
+        assert contrast > 40.0, (name, k)
+        assert abs(a - c) < 0.5 * contrast and abs(b - d) < 0.5 * contrast, (name, k)
+
+
+def _to_table(v: synth.BoardVariant, board_mm: np.ndarray) -> np.ndarray:
+    a = np.radians(v.scene.board_angle_deg)
+    turn = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    return np.asarray(board_mm @ turn.T + np.array(v.scene.board_origin_mm), np.float64)
+
+
+def test_the_corpus_covers_the_board_types() -> None:
+    assert set(synth.VARIANTS_BY_KIND) == {"circles", "chessboard", "charuco"}
+    assert synth.VARIANTS_BY_KIND["circles"] is synth.BOARD_VARIANTS
+    names = [n for kind in synth.VARIANTS_BY_KIND.values() for n in kind]
+    assert len(names) == len(set(names))
+    big = synth.board_variant("charuco_4k_small_markers")
+    assert big.image.shape == (2160, 3840) and big.visible.all()
+    circles = synth.board_variants(names=["rotated_90"])[0]
+    assert circles.visible.all()
+    with pytest.raises(ValueError, match="kind must be one of"):
+        synth.board_variants(kind="squares")

@@ -10,10 +10,16 @@ printed marks beside the dots) and objects (bolts, nuts, washers, discs, rectang
 it and returns the 8-bit image with the exact truth: where every dot centre and every object
 centroid lies on the table (mm) and in the image (px), and each dot's printed diameter.
 
+Any board of :mod:`planarcal.calib.boards` renders: circle grids, chessboards and ChArUco
+boards (drawn from the board's printed ink by exact area), whole or in part (a pose that
+cuts it off, a :func:`hand` over it, glare), with each point's truth by id.
+
 For board detection, :func:`board_variants` renders a corpus of boards with their truth
-(dot sizes from 0.15 to 0.85 of the pitch, both layouts, markers and fiducials, printed
-marks (:func:`printed_marks`), 320 x 240 to 4K, webcam JPEG (:func:`jpeg`), distortion,
-tilt, uneven light, light dots on dark paper, textured tables).
+(circle grids: dot sizes from 0.15 to 0.85 of the pitch, both layouts, markers and
+fiducials, printed marks (:func:`printed_marks`), 320 x 240 to 4K, webcam JPEG
+(:func:`jpeg`), distortion, tilt, uneven light, light dots on dark paper, textured tables;
+chessboards and ChArUco boards likewise, and partial views: ``kind="chessboard"``,
+``"charuco"``).
 
 The modules, from the bottom up:
 
@@ -21,9 +27,11 @@ The modules, from the bottom up:
   (table coordinates, pixels, the lens) that everything here follows.
 * ``shapes``, ``point_index``: flat shapes as signed-distance fields, and finding points
   near one.
-* ``objects``: :class:`SceneObject` (bolts, nuts, ...) and its :class:`Silhouette`.
+* ``objects``: :class:`SceneObject` (bolts, nuts, ...) and its :class:`Silhouette`;
+  ``occluders``: :func:`hand`.
 * ``raised``: objects with height, as regions of the table plane.
-* ``dots``: a board's dots on the table and their field.
+* ``dots``: a board's dots on the table and their field; ``pattern``: a board printed as
+  rectangles (chessboards, ChArUco) as exact regions.
 * ``scene``: which material each table point sees, and a cell shaded by exact coverage.
 * ``effects``: textures, uneven lighting, blur, noise, :func:`jpeg`.
 * ``marks``: :func:`printed_marks` beside the dots.
@@ -38,7 +46,15 @@ The modules, from the bottom up:
 from __future__ import annotations
 
 from planarcal.synth.camera import CameraModel, PlanePose, View
-from planarcal.synth.corpus import BOARD_VARIANTS, BoardVariant, board_variant, board_variants
+from planarcal.synth.corpus import (
+    BOARD_VARIANTS,
+    CHARUCO_VARIANTS,
+    CHESSBOARD_VARIANTS,
+    VARIANTS_BY_KIND,
+    BoardVariant,
+    board_variant,
+    board_variants,
+)
 from planarcal.synth.effects import jpeg
 from planarcal.synth.marks import MARK_KINDS, MarkKind, printed_marks
 from planarcal.synth.objects import OBJECT_KINDS, ObjectKind, SceneObject, Silhouette
@@ -57,6 +73,8 @@ from planarcal.synth.render import RenderedScene, render_scene
 
 __all__ = [
     "BOARD_VARIANTS",
+    "CHARUCO_VARIANTS",
+    "CHESSBOARD_VARIANTS",
     "MARK_KINDS",
     "OBJECT_KINDS",
     "PAPER_BOARD",
@@ -64,6 +82,7 @@ __all__ = [
     "PAPER_EFFECTS",
     "PAPER_OBJECTS",
     "PAPER_POSE",
+    "VARIANTS_BY_KIND",
     "BoardVariant",
     "CameraModel",
     "MarkKind",
