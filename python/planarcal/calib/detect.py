@@ -54,6 +54,7 @@ from planarcal.calib.dot_sizes import (
 )
 from planarcal.calib.grid_search import (
     LATTICE_SYMMETRIES,
+    Lattice,
     board_pattern,
     fill_holes,
     grow_lattices,
@@ -63,6 +64,7 @@ from planarcal.calib.grid_search import (
     outer_ring,
     place_board,
 )
+from planarcal.calib.partial_view import join_blobs, place_partial
 from planarcal.errors import ArgumentError, BoardNotFoundError, BoardTurnedError, DegenerateError
 from planarcal.homography import estimate_homography, reprojection_errors, transform_points
 from planarcal.images import ROWS_PER_CHUNK, grey_levels
@@ -78,6 +80,16 @@ MIN_DOT_PX = 3.5
 # clustering variant, which the lattice search makes unnecessary, is never run).
 OPENCV_MAX_BLOBS = 600
 
+# A partial view needs this many dots, on at least three lattice lines each way.
+MIN_PARTIAL_DOTS = 8
+# Lattices tried as partial views per polarity, largest first.
+MAX_PARTIAL_LATTICES = 3
+
+FIDUCIAL_RULE = "the board's fiducial dots, which fix its reading, are where the board has them"
+PARTIAL_RULE = (
+    "a partial view: the dots in view, with the board's enlarged dots seen among them (and "
+    "not seen where they are regular), fit the board in one way only"
+)
 PATTERN_RULE = (
     "the grid's own pattern has one reading that is not mirrored (an asymmetric grid with an "
     "odd number of rows): dot 0 is its origin"
@@ -115,6 +127,23 @@ class DetectionDiagnostics:
     """(width, height) px."""
     blobs: tuple[SeenBlobs, ...]
     candidates: tuple[RefusedCandidate, ...]
+    partial_views: tuple[PartialView, ...] = ()
+    """The partial views of the board seen that could not be read (ambiguous)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PartialView:
+    """Part of the board seen, which fits the board in several ways."""
+
+    polarity: Literal["dark", "light"]
+    dots: int
+    """Dots seen in it."""
+    grid: tuple[int, int]
+    """(dots across the image, dots down) of its lattice."""
+    ways: int
+    """Distinct readings it fits the board in (-1: more than were counted)."""
+    enlarged: int
+    """Enlarged dots seen in it (fiducials or a marker the board's description lacks?)."""
 
 
 def detect_circle_grid(
@@ -143,6 +172,8 @@ def detect_circle_grid(
     refused: list[RefusedCandidate] = []
     seen: list[SeenBlobs] = []
     turned_error: BoardTurnedError | None = None
+    # Lattices that may be part of the board, tried once no whole board is found.
+    partial_tries: list[tuple[Literal["dark", "light"], Blobs, list[Lattice], list[Lattice]]] = []
     for pol in polarities:
         # Memory: an 8-bit image is searched as it is (the light dots' search thresholds it
         # the other way), a float one through one 8-bit copy per polarity; the float copy
@@ -151,7 +182,9 @@ def detect_circle_grid(
         blobs = find_blobs(u8, MIN_DOT_PX, _largest_dot_px(u8.shape, board), dark=dark)
         ink = _InkDark(grey, pol)
         grids: list[tuple[int, int, int]] = []
-        candidates = _candidates(u8, blobs, board, pol, refused, grids)
+        partial: list[Lattice] = []
+        every: list[Lattice] = []
+        candidates = _candidates(u8, blobs, board, pol, refused, grids, partial, every)
         for method, points, sizes, filled in candidates:
             try:
                 return _finish(ink.get(), points, sizes, filled, board, method, pol, blobs, turned)
@@ -162,16 +195,42 @@ def detect_circle_grid(
                 refused.append(RefusedCandidate(method, pol, points, str(why)))
         largest = max(grids, key=lambda g: g[2], default=None)
         seen.append(SeenBlobs(pol, blobs.centres, blobs.diameters, largest))
+        partial_tries.append((pol, blobs, partial, every))
         del u8, ink, candidates  # free this polarity's images before the next one's
+    # No whole board: part of it, where the part in view says which part it is.
+    views: list[PartialView] = []
+    for pol, blobs, lattices, every in partial_tries:
+        ink = _InkDark(grey, pol)
+        for lattice in lattices[:MAX_PARTIAL_LATTICES]:
+            points = blobs.centres[lattice.blob]
+            others = [other for other in every if other is not lattice]
+            try:
+                return _finish_partial(ink.get(), lattice, board, pol, blobs, others, turned)
+            except _AmbiguousViewError as e:
+                views.append(e.view)
+            except BoardTurnedError as e:
+                turned_error = turned_error or e
+                refused.append(RefusedCandidate("partial", pol, points, str(e)))
+            except _RefusedError as why:
+                refused.append(RefusedCandidate("partial", pol, points, str(why)))
+        del ink
     h, w = grey.shape
-    diagnostics = DetectionDiagnostics(board, (w, h), tuple(seen), tuple(refused))
+    diagnostics = DetectionDiagnostics(board, (w, h), tuple(seen), tuple(refused), tuple(views))
     if turned_error is not None:
         raise BoardTurnedError(str(turned_error), diagnostics)
-    raise BoardNotFoundError(_explain(grey, board, seen, polarities, refused), diagnostics)
+    raise BoardNotFoundError(_explain(grey, board, seen, polarities, refused, views), diagnostics)
 
 
 class _RefusedError(Exception):
     """A candidate grid that failed a check (the reason is the message)."""
+
+
+class _AmbiguousViewError(Exception):
+    """Part of the board seen that fits it in several ways."""
+
+    def __init__(self, view: PartialView) -> None:
+        super().__init__(f"a partial view that fits the board in {view.ways} ways")
+        self.view = view
 
 
 def _search_image(
@@ -234,9 +293,12 @@ def _candidates(
     polarity: Literal["dark", "light"],
     refused: list[RefusedCandidate],
     grids: list[tuple[int, int, int]],
+    partial: list[Lattice],
+    every: list[Lattice],
 ) -> Iterator[tuple[str, F64, F64, NDArray[np.bool_]]]:
     """(method, points (n, 2) in a reading of the board's order, blob diameters (n,) px,
-    which dots are filled in where no blob was)."""
+    which dots are filled in where no blob was). Lattices that fit inside the board (or are
+    it, with holes) and may be part of it are added to `partial`, every lattice to `every`."""
     n = board.n_points
     # A lattice three times the board's size is no board of this size: it stops growing.
     for lattice in grow_lattices(blobs, min_nodes=min(n, 4), max_nodes=max(3 * n, n + 200)):
@@ -244,6 +306,9 @@ def _candidates(
         pts = blobs.centres[lattice.blob]
         cols, rows = lattice_extent(lattice, blobs.centres)
         grids.append((cols, rows, len(lattice.blob)))
+        every.append(lattice)
+        if len(placements) <= 1 and _may_be_partial(lattice):
+            partial.append(lattice)
         if len(placements) == 1:
             p = placements[0]
             points = fill_holes(p, blobs.centres)
@@ -390,6 +455,183 @@ def _finish(
     )
 
 
+def _may_be_partial(lattice: Lattice) -> bool:
+    """Whether a lattice is large enough to be read as part of a board: MIN_PARTIAL_DOTS
+    dots on at least three lines each way (a homography, and a shape to place)."""
+    if len(lattice.blob) < MIN_PARTIAL_DOTS:
+        return False
+    return all(len(np.unique(lattice.nodes[:, axis])) >= 3 for axis in (0, 1))
+
+
+def _finish_partial(
+    ink_dark: NDArray[np.float32],
+    lattice: Lattice,
+    board: CircleGridBoard,
+    polarity: Literal["dark", "light"],
+    blobs: Blobs,
+    others: list[Lattice],
+    turned: bool,
+) -> BoardDetection:
+    """Part of the board, read from a lattice that fits inside it in one way only (its
+    enlarged dots, or its extent, say where it lies on the board), with the other blobs that
+    are board dots joined to it. Dots that cannot be measured, or stray from where their
+    neighbours put them, are left out: a partial view names the dots it found."""
+    points = blobs.centres[lattice.blob]
+    spacing = _nearest_distance(points)
+    pitch = float(np.median(spacing))
+    if not np.isfinite(pitch) or pitch < 4.0:
+        raise _RefusedError(f"dots too close together ({pitch:.1f} px apart)")
+    measured = refine_centres(ink_dark, points, np.minimum(blobs.diameters[lattice.blob], spacing))
+    enlarged = _enlarged(measured.centres, measured.areas, pitch)
+    usable = measured.refined
+    fit = place_partial(lattice.nodes, measured.centres, usable, enlarged, board)
+    if fit.ways == 0:
+        marks = (
+            "" if not board.dot_kinds().any() else ", with its enlarged dots where the board's are,"
+        )
+        raise _RefusedError(
+            f"a grid of {len(lattice.blob)} dots that does not fit inside the board{marks} "
+            "without a mirror"
+        )
+    if fit.ways != 1:
+        across, down = lattice_extent(lattice, blobs.centres)
+        raise _AmbiguousViewError(
+            PartialView(
+                polarity, int(usable.sum()), (across, down), fit.ways, int(enlarged[usable].sum())
+            )
+        )
+    world = board.world_points()
+    readings = [r[usable] for r in fit.readings]
+    centres = measured.centres[usable]
+    reading, orientation, rule = _partial_reading(readings, centres, board)
+    ids = reading
+    areas = measured.areas[usable]
+    # The board's other dots in view: blobs off the lattice (across an object, glare).
+    taken = np.zeros(len(blobs), dtype=bool)
+    taken[lattice.blob] = True
+    found_px = blobs.diameters[lattice.blob][usable]
+    joined = join_blobs(
+        ids, centres, found_px, blobs.centres, blobs.diameters, taken, board, others
+    )
+    if joined.ids.size:
+        extra = refine_centres(
+            ink_dark, blobs.centres[joined.blob], np.minimum(blobs.diameters[joined.blob], pitch)
+        )
+        keep = extra.refined
+        ids = np.concatenate([ids, joined.ids[keep]])
+        centres = np.concatenate([centres, extra.centres[keep]])
+        areas = np.concatenate([areas, extra.areas[keep]])
+    order = np.argsort(ids)
+    ids, centres, areas = ids[order], centres[order], areas[order]
+    enlarged = _enlarged(centres, areas, pitch)
+    kinds = board.dot_kinds() > 0
+    if kinds.any():
+        # Joined dots of the wrong kind (a blob swollen by glare) are not the board's.
+        agree = enlarged == kinds[ids]
+        ids, centres, areas, enlarged = ids[agree], centres[agree], areas[agree], enlarged[agree]
+    if len(ids) < MIN_PARTIAL_DOTS:
+        raise _RefusedError(f"only {len(ids)} dots of the partial view could be measured")
+    checked, ok, doubts = _checked_by_neighbours(
+        centres, areas, np.ones(len(ids), bool), enlarged, board, pitch, world=world[ids]
+    )
+    del checked
+    warnings: tuple[str, ...] = ()
+    if not ok.all():
+        warnings = (
+            f"{int((~ok).sum())} dot(s) left out: far from where their neighbours put them "
+            f"(partly hidden?): {', '.join(str(k) for k in ids[~ok][:6])}",
+        )
+        ids, centres, areas, enlarged = ids[ok], centres[ok], areas[ok], enlarged[ok]
+    del doubts
+    if orientation == "ambiguous" and not kinds.any():
+        warnings = (*warnings, *_turned_check(centres, world[ids], board, turned))
+    try:
+        corrected, h, diameters_mm = _unbias(centres, world[ids], areas, enlarged)
+        residuals = reprojection_errors(h, world[ids], corrected)
+    except (DegenerateError, ValueError) as e:
+        raise _RefusedError(f"the points do not form a grid: {e}") from None
+    diameters = 2.0 * np.sqrt(areas / np.pi)
+    beyond = _continues_beyond(corrected, board, blobs, float(np.median(diameters)), pitch, ids=ids)
+    if beyond is not None:
+        raise _RefusedError(
+            f"the dots continue past the grid's {beyond} edge: the board in view is larger than "
+            f"{board.cols} x {board.rows} (check --cols and --rows)"
+        )
+    dot_sizes = measured_sizes(
+        board,
+        diameters_mm,
+        enlarged,
+        diameters,
+        board.origin_marker and orientation == "marker",
+        ink_dark,
+        corrected,
+        ids,
+    )
+    check_description(board, dot_sizes)
+    height, width = ink_dark.shape[:2]
+    return BoardDetection(
+        board=board,
+        image_points=np.ascontiguousarray(corrected),
+        image_size=(width, height),
+        method="lattice",
+        residual_rms_px=float(np.sqrt(np.mean(residuals**2))),
+        ids=ids.astype(np.intp),
+        polarity=polarity,
+        dot_diameters_px=diameters,
+        refined=np.ones(len(ids), dtype=bool),
+        enlarged=enlarged,
+        orientation=orientation,
+        orientation_rule=rule,
+        warnings=warnings,
+        sizes=dot_sizes,
+    )
+
+
+def _partial_reading(
+    readings: list[NDArray[np.intp]], centres: F64, board: CircleGridBoard
+) -> tuple[NDArray[np.intp], Orientation, str]:
+    """Of a partial view's readings (the ids of its dots, one reading per turn of the board
+    onto itself), the one chosen as a whole board's would be: the only one, else the one
+    whose dot 0 lies nearest the image's top-left (where the homography of the dots seen puts
+    it)."""
+    if len(readings) == 1:
+        if board.layout == "asymmetric" and board.rows % 2 == 1:
+            return readings[0], "pattern", PATTERN_RULE
+        return readings[0], "marker", PARTIAL_RULE
+    world = board.world_points()
+
+    def origin_distance(ids: NDArray[np.intp]) -> float:
+        try:
+            h = estimate_homography(world[ids], centres)
+        except (DegenerateError, ValueError):
+            return float("inf")
+        return float(np.hypot(*transform_points(h, world[:1])[0]))
+
+    best = min(readings, key=origin_distance)
+    return best, "ambiguous", AMBIGUOUS_RULE
+
+
+def _turned_check(
+    centres: F64, world: F64, board: CircleGridBoard, turned: bool
+) -> tuple[str, ...]:
+    """A non-square plain board read with its rows running down the image: refused as a
+    whole board's would be (usually --cols and --rows swapped), unless `turned`."""
+    if board.cols == board.rows or board.layout != "symmetric":
+        return ()
+    design = np.column_stack([world, np.ones(len(world))])
+    coef = np.linalg.lstsq(design, centres, rcond=None)[0]
+    x_axis = coef[0]
+    if abs(x_axis[1]) <= abs(x_axis[0]):
+        return ()
+    if not turned:
+        raise BoardTurnedError(
+            f"the {board.cols} x {board.rows} grid lies turned by 90 degrees in the image "
+            f"(its rows run down the image).{_swap_hint(board)} If the board really lies "
+            "turned, accept its frame as it is with --turned (turned=True)."
+        )
+    return ("the board lies turned by 90 degrees in the image (accepted: turned)",)
+
+
 # A dot this far from where its neighbours put it (in pitches) is not measured right (a mark or
 # glare over it, a dot split in two) and takes their prediction instead; nearer dots are
 # judged against how well the board's dots agree on the whole (_checked_by_neighbours).
@@ -407,14 +649,17 @@ def _checked_by_neighbours(
     enlarged: NDArray[np.bool_],
     board: CircleGridBoard,
     pitch: float,
+    *,
+    world: F64 | None = None,
 ) -> tuple[F64, NDArray[np.bool_], tuple[str, ...]]:
     """Each centre against the homography through the dots around it (two steps on the
     board; the board's bend by the lens is smooth over that, however strong the lens): a dot
     that strays from it far more than the dots do on the whole, or that shows much less ink
     than its neighbours, keeps their prediction instead, flagged as not refined. The worst
     goes first and no longer predicts its neighbours, so one bad dot does not condemn the
-    dots around it. More such dots than a board may miss is no board: refused."""
-    world = board.world_points()
+    dots around it. More such dots than a board may miss is no board: refused. `world`: the
+    dots' board positions (mm), every dot of the board in order when None."""
+    world = board.world_points() if world is None else world
     neighbourhoods = _around(world, 2.01 * board.neighbour_distance)
     trusted = np.ones(len(world), dtype=bool)
     why: dict[int, str] = {}
@@ -563,6 +808,8 @@ def _reading(
             "the grid has no unmirrored reading: is the board seen from behind, or in a "
             f"mirror?{swap}"
         )
+    if board.fiducials:
+        return _fiducial_reading(centres, enlarged, board, readings)
     corners = _corner_dots(board)
     marker_at = [k for k in corners if enlarged[k]] if len(corners) else []
     if len(marker_at) == 1:
@@ -596,6 +843,36 @@ def _reading(
                 raise BoardTurnedError(message)
             warnings = ("the board lies turned by 90 degrees in the image (accepted: turned)",)
     return best, "ambiguous", AMBIGUOUS_RULE, warnings
+
+
+def _fiducial_reading(
+    centres: F64,
+    enlarged: NDArray[np.bool_],
+    board: CircleGridBoard,
+    readings: list[NDArray[np.intp]],
+) -> tuple[NDArray[np.intp], Orientation, str, tuple[str, ...]]:
+    """Of a board with fiducials, the unmirrored readings that put the enlarged dots seen
+    exactly on the board's enlarged dots: one where they fix the orientation, else the one
+    whose dot 0 is nearest the image's top-left, as for any symmetric board (the fiducials
+    agreeing with the description, the board's size is not doubted: no turned check)."""
+    kinds = board.dot_kinds() > 0
+    agree = [r for r in readings if np.array_equal(enlarged[r], kinds)]
+    if not agree:
+        seen = int(enlarged.sum())
+        ids = ", ".join(str(k) for k in np.flatnonzero(kinds)[:8])
+        raise _RefusedError(
+            f"{seen} enlarged dot(s) seen, not where the board's enlarged dots are (ids {ids}): "
+            "check the board's fiducials (and origin marker)"
+        )
+    if len(agree) == 1:
+        rule = (
+            "dot 0 is the origin marker (the enlarged corner dot)"
+            if board.origin_marker
+            else FIDUCIAL_RULE
+        )
+        return agree[0], "marker", rule, ()
+    best = min(agree, key=lambda r: float(np.hypot(*centres[r[0]])))
+    return best, "ambiguous", AMBIGUOUS_RULE, ()
 
 
 def _swap_hint(board: CircleGridBoard) -> str:
@@ -671,11 +948,18 @@ def _unbias(
 
 
 def _continues_beyond(
-    points: F64, board: CircleGridBoard, blobs: Blobs, dot_px: float, pitch_px: float
+    points: F64,
+    board: CircleGridBoard,
+    blobs: Blobs,
+    dot_px: float,
+    pitch_px: float,
+    *,
+    ids: NDArray[np.intp] | None = None,
 ) -> str | None:
     """The edge past which the grid visibly goes on (dots of the same size where one more row
     or column would be), or None. A grid found inside a larger board is not that board: its
-    origin would be the wrong dot."""
+    origin would be the wrong dot. `points` are the board's dots `ids` (every dot when None:
+    of a partial view, the places next to its dots are looked at)."""
     if not len(blobs):
         return None
     ring = lattice_to_world(board, outer_ring(board))
@@ -691,7 +975,12 @@ def _continues_beyond(
     xy = blobs.centres
     similar = (blobs.diameters > 0.5 * dot_px) & (blobs.diameters < 2.0 * dot_px)
     # A step outside the board: its nearest dots all lie to one side, three steps reach enough.
-    predicted = _predict_from_neighbours(board.world_points(), points, ring, board, steps=3.0)
+    world = board.world_points() if ids is None else board.world_points()[ids]
+    predicted = _predict_from_neighbours(world, points, ring, board, steps=3.0)
+    if ids is not None:
+        # Of a partial view, only the places next to the dots found.
+        for name in edges:
+            edges[name] &= np.isfinite(predicted).all(axis=1)
     near = np.zeros(len(ring), dtype=bool)
     for k, q in enumerate(predicted):
         if np.isfinite(q).all():
@@ -713,6 +1002,7 @@ def _explain(
     seen: list[SeenBlobs],
     polarities: tuple[Literal["dark", "light"], ...],
     refused: list[RefusedCandidate],
+    views: list[PartialView] | None = None,
 ) -> str:
     n = board.n_points
     lines = [
@@ -739,7 +1029,34 @@ def _explain(
             counts.append(0)
     best = max(counts) if counts else 0
     hints = []
-    if best and best < n:
+    view = max(views or [], key=lambda v: v.dots, default=None)
+    if view is not None:
+        ways = "more ways than were counted" if view.ways < 0 else f"{view.ways} ways"
+        lines.append(
+            f"The view is partial and ambiguous: {view.dots} of the board's {n} dots seen "
+            f"({view.polarity}, in a grid of about {view.grid[0]} x {view.grid[1]}), which fit "
+            f"inside the board in {ways}: nothing in view says which of its dots they are."
+        )
+        if view.enlarged and not board.dot_kinds().any():
+            lines.append(
+                f"{view.enlarged} enlarged dot(s) seen among them: if the board has fiducial "
+                "dots or an origin marker, describe them (fiducials=(ids...), origin_marker) "
+                "and the view is read from them."
+            )
+        marks = (
+            "or let its enlarged dots be seen"
+            if board.dot_kinds().any()
+            else "or use a board that identifies its dots (an origin marker, --origin-marker, "
+            "or fiducial dots, fiducials=(ids...))"
+        )
+        hints.append(
+            f"fewer dots than the board has: put the whole board in view (not cut off or "
+            f"covered), {marks}; and is the board {board.cols} x {board.rows}?"
+        )
+        best = -1  # the hint is given
+    if best < 0:
+        pass
+    elif best and best < n:
         hints.append(
             f"fewer dots than the board has: is the whole board in view (not cut off or "
             f"covered), and is it {board.cols} x {board.rows}?"

@@ -98,16 +98,19 @@ def measured_sizes(
     marker: bool,
     ink_dark: NDArray[np.float32],
     points: F64,
+    ids: NDArray[np.intp] | None = None,
 ) -> DotSizes:
-    """The sizes of a detection: each dot's diameter on the board (mm, board order), which
-    dots are enlarged, their diameters in the image (px), whether dot 0 is the origin marker,
-    and the ink image (dots dark) with the dots' centres, which say how far the sizes can be
-    trusted."""
+    """The sizes of a detection: each dot's diameter on the board (mm), which dots are
+    enlarged, their diameters in the image (px), whether dot 0 is the origin marker, and the
+    ink image (dots dark) with the dots' centres, which say how far the sizes can be trusted.
+    The dots are board points ``ids`` (ascending; every dot in board order when None: a
+    partial view measures the dots it found)."""
+    ids = np.arange(board.n_points) if ids is None else np.asarray(ids, dtype=np.intp)
     regular = ~enlarged if (~enlarged).any() else np.ones(len(enlarged), dtype=bool)
     diameter = float(np.median(diameters_mm[regular]))
     dot_px = float(np.median(diameters_px[regular]))
-    marker_mm = float(diameters_mm[0]) if marker else None
-    clipped = clipped_paper_share(ink_dark, points, board)
+    marker_mm = float(diameters_mm[0]) if marker and len(ids) and ids[0] == 0 else None
+    clipped = clipped_paper_share(ink_dark, points, board, ids)
     blur = edge_blur_px(ink_dark, points, diameters_px, regular)
     tolerance = SIZE_TOLERANCE + SIZE_TOLERANCE_PER_BLUR * blur / dot_px
     unchecked = None
@@ -129,13 +132,21 @@ def measured_sizes(
 
 
 def clipped_paper_share(
-    ink_dark: NDArray[np.float32], points: F64, board: CircleGridBoard
+    ink_dark: NDArray[np.float32],
+    points: F64,
+    board: CircleGridBoard,
+    ids: NDArray[np.intp] | None = None,
 ) -> float:
     """The share of the points midway between neighbours along a row (paper, whatever the
-    dots' size) that are at the top grey level of the ink image (paper light)."""
-    k = np.arange(board.n_points)
-    left = k[(k % board.cols) != board.cols - 1]
-    middle = np.rint(0.5 * (points[left] + points[left + 1])).astype(np.int64)
+    dots' size) that are at the top grey level of the ink image (paper light); `points` are
+    the board points `ids` (ascending; all of them when None)."""
+    ids = np.arange(board.n_points) if ids is None else np.asarray(ids, dtype=np.intp)
+    # Pairs of found dots next to each other along a row.
+    at = np.searchsorted(ids, ids + 1)
+    at = np.minimum(at, max(len(ids) - 1, 0))
+    pair = (ids % board.cols != board.cols - 1) & (ids[at] == ids + 1) if len(ids) else ids > 0
+    left = np.flatnonzero(pair)
+    middle = np.rint(0.5 * (points[left] + points[at[left]])).astype(np.int64)
     h, w = ink_dark.shape[:2]
     inside = (middle[:, 0] >= 0) & (middle[:, 0] < w) & (middle[:, 1] >= 0) & (middle[:, 1] < h)
     if not inside.any():
