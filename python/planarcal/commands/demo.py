@@ -5,18 +5,27 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planarcal.calib.boards import BOARD_TYPES
 from planarcal.report.figure import require_matplotlib
 from planarcal.synth import demo
 
 DESCRIPTION = (
     "Render the paper's setup (board, lens, blur, noise; then bolts and nuts at known "
     "places), calibrate, locate the objects, and say how far each is from the truth. Needs "
-    "no camera and no files."
+    "no camera and no files. --board chessboard or charuco puts a board of that type in the "
+    "paper's circle grid's place."
 )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.description = DESCRIPTION
+    p.add_argument(
+        "--board",
+        choices=BOARD_TYPES,
+        default="circles",
+        help="the board in the scene: the paper's circle grid (circles, the default), an "
+        "11 x 8 chessboard of 24 mm squares or a 12 x 9 ChArUco board of 24 mm squares",
+    )
     p.add_argument(
         "--report",
         type=Path,
@@ -35,5 +44,5 @@ def main(args: argparse.Namespace) -> int:
             )
         require_matplotlib()  # before the work: the figures cannot be drawn without it
         args.report.mkdir(parents=True, exist_ok=True)  # before the work, a bad place fails now
-    print(demo.run(report=args.report))
+    print(demo.run(report=args.report, board=args.board))
     return 0

@@ -1,8 +1,10 @@
 """The built-in example: the paper's whole method on a rendered scene of its setup.
 
-planarcal.synth renders the paper's board seen by a 1280 x 720 webcam through a plastic lens
-(barrel distortion), with blur, sensor noise and uneven lighting, then the same view with 3
-bolts and 7 nuts at the positions of the paper's Table 5. The demo runs the pipeline a user
+planarcal.synth renders the paper's board (or, with ``board="chessboard"`` or ``"charuco"``,
+a board of that type in its place: :data:`planarcal.synth.paper.PAPER_BOARDS`) seen by a
+1280 x 720 webcam through a plastic lens (barrel distortion), with blur, sensor noise and
+uneven lighting, then the same view with 3 bolts and 7 nuts at the positions of the paper's
+Table 5. The demo runs the pipeline a user
 runs on real images: find the board, calibrate, report, locate the objects in millimetres
 with their error bars and angles, register the board to a robot from six touched dots, and,
 because the scene is rendered, says how far every result is from the truth. With a report
@@ -23,14 +25,16 @@ from numpy.typing import NDArray
 
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.boards import BOARD_TYPES, Board
 from planarcal.calib.calibration import Calibration
-from planarcal.calib.detect import detect_board
-from planarcal.errors import MissingDependencyError
+from planarcal.calib.detection import detect_board
+from planarcal.errors import BoardError, MissingDependencyError
 from planarcal.files import atomic_write
 from planarcal.live.objects import locate_objects
 from planarcal.report import summary_text, write_report
 from planarcal.report.drawing import draw_objects, png_bytes
 from planarcal.report.figure import require_matplotlib
+from planarcal.report.printable.options import board_options
 from planarcal.synth import paper_data
 
 REPORT_EXAMPLE = "demo-report"
@@ -46,25 +50,26 @@ NEXT_STEPS = (
 """The demo's last lines: the commands a user runs on a real camera, the demo's steps."""
 
 
-def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
+def run(seed: int = 0, report: str | os.PathLike[str] | None = None, board: str = "circles") -> str:
     """The demo's report, as text; with ``report``, a directory (created if need be), also
     its files there: the calibration report (``planarcal.report.write_report``: the figures,
     the per-point table and summary.json), the calibration (calib.json), the rendered images
     (board.png, objects.png) and the objects located, drawn on theirs (located.png), each
-    written atomically."""
+    written atomically. ``board``: the board type in the scene ("circles", the paper's
+    board; "chessboard"; "charuco": see :data:`planarcal.synth.paper.PAPER_BOARDS`)."""
+    if board not in BOARD_TYPES:
+        raise BoardError(f"board must be one of {', '.join(BOARD_TYPES)}, got {board!r}")
     out: list[str] = []
     say = out.append
     start = time.perf_counter()
-    scene = synth.paper_scene(seed=seed)
+    scene = synth.paper_scene(seed=seed, board=board)
     board_view, objects_view = scene.calibration, scene.objects
-    board = board_view.board
-    # paper_scene always renders its circle grid in the first view
-    assert isinstance(board, CircleGridBoard)
+    shown = board_view.board
+    assert shown is not None  # paper_scene always renders its board in the first view
     cam, pose, fx = board_view.camera, board_view.pose, board_view.effects
     say("planarcal demo: the paper's setup, rendered with exact ground truth (planarcal.synth)")
     say(
-        f"  {board.cols} x {board.rows} board ({board.diameter:g} "
-        f"mm dots, {board.pitch:g} mm apart) seen by a {cam.width} x {cam.height} "
+        f"  {_board_words(shown)} seen by a {cam.width} x {cam.height} "
         f"camera from {pose.distance_mm:g} mm, tilted {pose.tilt_deg:g} degrees, through a lens "
         f"with barrel distortion (k1 = {cam.k1:g}); blur {fx['blur_sigma_px']:g} px, noise "
         f"{fx['noise_sigma']:g} grey levels, uneven lighting"
@@ -72,16 +77,22 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
     say("")
 
     # 1. Calibration from the board image.
-    detection = detect_board(board_view.image, board)
+    detection = detect_board(board_view.image, shown)
     cal = Calibration.from_detection(detection)
     plain = Calibration.from_detection(detection, lens="none")
-    centre_err = np.linalg.norm(
-        detection.image_points[:, None] - board_view.dot_centres_px[None], axis=2
-    ).min(axis=1)
     say("1. Calibration image")
     say(summary_text(cal, detection))
+    if isinstance(shown, CircleGridBoard):
+        centre_err = np.linalg.norm(
+            detection.image_points[:, None] - board_view.dot_centres_px[None], axis=2
+        ).min(axis=1)
+        what = "Dot centres"
+    else:  # each corner against its own id's truth
+        ids = np.asarray(detection.ids, dtype=np.intp)
+        centre_err = np.linalg.norm(detection.image_points - board_view.points_px[ids], axis=1)
+        what = f"Corners ({len(ids)} of {shown.n_points})"
     say(
-        f"Dot centres against the truth: {np.sqrt(np.mean(centre_err**2)):.4f} px RMS, "
+        f"{what} against the truth: {np.sqrt(np.mean(centre_err**2)):.4f} px RMS, "
         f"{centre_err.max():.4f} px at most."
     )
     p = plain.stats
@@ -92,8 +103,7 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
         "lens's barrel distortion, which a homography cannot model, dominates both; the lens "
         "model fitted with H removes it."
     )
-    grid = np.mgrid[0 : board.cols - 1 : 40j, 0 : board.rows - 1 : 30j].reshape(2, -1).T
-    truth = grid * board.pitch
+    truth = _points_between(shown)
     pixels = board_view.project(truth)
     for name, c in (("with the lens model", cal), ("a homography alone", plain)):
         err = np.hypot(*(c.image_to_world(pixels) - truth).T)
@@ -136,9 +146,9 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
     say("")
 
     # 3. The robot's frame, from six dots its tool touched.
-    say("3. Robot frame: six dots touched by a robot's tool (simulated: 0.05 mm of noise)")
-    dots = [0, board.cols - 1, board.cols * board.rows - 1, board.cols * (board.rows - 1)]
-    dots += [board.cols * (board.rows // 3) + board.cols // 3, board.cols * 6 + 9]
+    point = "dots" if isinstance(shown, CircleGridBoard) else "corners"
+    say(f"3. Robot frame: six {point} touched by a robot's tool (simulated: 0.05 mm of noise)")
+    dots = _touched(shown)
     robot_truth = _ROBOT
     touched = _apply(robot_truth, cal.board.world_points()[dots]) if cal.board else None
     assert touched is not None
@@ -169,7 +179,11 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
             extra = ""
         except MissingDependencyError:
             extra = " (after: pip install 'planarcal[report]')"
-        say(f"To see the figures and the images: planarcal demo --report {REPORT_EXAMPLE}{extra}")
+        again = "" if board == "circles" else f" --board {board}"
+        say(
+            f"To see the figures and the images: planarcal demo{again} --report "
+            f"{REPORT_EXAMPLE}{extra}"
+        )
     else:
         written = write_report(cal, report, image=board_view.image, detection=detection)
         folder = Path(report)
@@ -182,8 +196,53 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None) -> str:
             ),
         ]
         say(f"Wrote to {folder}: {', '.join(p.name for p in written)}")
-    out += NEXT_STEPS
+    out += _next_steps(shown)
     return "\n".join(out)
+
+
+def _next_steps(board: Board) -> list[str]:
+    """NEXT_STEPS, for a board other than a circle grid with its options spelt out."""
+    steps = list(NEXT_STEPS)
+    if isinstance(board, CircleGridBoard):
+        return steps
+    printing = " ".join(board_options(board, for_printing=True))
+    steps[1] = f"  planarcal board {printing} -o board.pdf    # print at 100%"
+    options = " ".join(board_options(board))
+    steps[2] = f"  planarcal calibrate photo.png {options} -o calib.json --report report"
+    return steps
+
+
+def _board_words(board: Board) -> str:
+    """The board in the demo's opening line."""
+    if isinstance(board, CircleGridBoard):
+        return (
+            f"{board.cols} x {board.rows} board ({board.diameter:g} "
+            f"mm dots, {board.pitch:g} mm apart)"
+        )
+    return board.describe()
+
+
+def _points_between(board: Board) -> NDArray[np.float64]:
+    """A 40 x 30 grid of points over the board's points (mm), where the mapping is tested."""
+    if isinstance(board, CircleGridBoard):
+        grid = np.mgrid[0 : board.cols - 1 : 40j, 0 : board.rows - 1 : 30j].reshape(2, -1).T
+        return np.asarray(grid * board.pitch, np.float64)
+    pts = board.world_points()
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    grid = np.mgrid[0:1:40j, 0:1:30j].reshape(2, -1).T
+    return np.asarray(lo + grid * (hi - lo), np.float64)
+
+
+def _touched(board: Board) -> list[int]:
+    """The six points the demo's robot touches: the four corners of the board's points and
+    two inside (for the paper's board, the dots its first version touched)."""
+    if isinstance(board, CircleGridBoard):
+        dots = [0, board.cols - 1, board.cols * board.rows - 1, board.cols * (board.rows - 1)]
+        return [*dots, board.cols * (board.rows // 3) + board.cols // 3, board.cols * 6 + 9]
+    pts = board.world_points()
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    at = [(0, 0), (1, 0), (1, 1), (0, 1), (1 / 3, 1 / 3), (2 / 3, 3 / 4)]
+    return [int(np.argmin(np.hypot(*(pts - (lo + np.array(f) * (hi - lo))).T))) for f in at]
 
 
 # The demo's robot: its base frame seen from above is the board's mirror image, turned by

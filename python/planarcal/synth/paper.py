@@ -13,13 +13,35 @@ import numpy as np
 
 from planarcal import arguments
 from planarcal.calib.board import CircleGridBoard
-from planarcal.errors import ArgumentError, ImageError
+from planarcal.calib.boards import Board, is_board
+from planarcal.calib.charuco import CharucoBoard
+from planarcal.calib.chessboard import ChessboardBoard
+from planarcal.errors import ArgumentError, BoardError, ImageError
 from planarcal.synth.camera import CameraModel, PlanePose
 from planarcal.synth.objects import SceneObject
 from planarcal.synth.render import RenderedScene, render_scene
 
 PAPER_BOARD = CircleGridBoard(cols=14, rows=10, pitch=20.0, diameter=10.0)
 """The paper's board: 14 x 10 dots of 10 mm, 20 mm apart, no origin marker."""
+
+PAPER_CHESSBOARD = ChessboardBoard(cols=11, rows=8, square=24.0)
+"""A chessboard in the paper board's place: 11 x 8 inner corners of 24 mm (240 x 168 mm,
+the paper's 260 x 180 mm dot field), corner 0 at the table origin, so its points span the
+paper's objects."""
+
+PAPER_CHARUCO = CharucoBoard(
+    squares_x=12, squares_y=9, square=24.0, marker=18.0, dictionary="DICT_5X5_100"
+)
+"""A ChArUco board in the paper board's place: 12 x 9 squares of 24 mm with 18 mm DICT_5X5_100
+markers (its 11 x 8 inner corners where :data:`PAPER_CHESSBOARD`'s are, 24 mm further on:
+its world origin, the outer corner, at the table origin)."""
+
+PAPER_BOARDS: Mapping[str, Board] = {
+    "circles": PAPER_BOARD,
+    "chessboard": PAPER_CHESSBOARD,
+    "charuco": PAPER_CHARUCO,
+}
+"""The board of :func:`paper_scene` by type (``board="circles"`` and so on)."""
 
 PAPER_CAMERA = CameraModel(
     width=1280, height=720, focal_px=1070.0, principal=(644.0, 355.0), k1=-0.12, k2=0.03
@@ -77,7 +99,12 @@ class PaperScene(NamedTuple):
 
 
 def paper_scene(
-    seed: int = 0, *, distortion: bool = True, objects: bool = True, color: bool = False
+    seed: int = 0,
+    *,
+    distortion: bool = True,
+    objects: bool = True,
+    color: bool = False,
+    board: Board | str = "circles",
 ) -> PaperScene:
     """The demo's scene, modelled on the paper's setup; returns (calibration, objects).
 
@@ -87,7 +114,19 @@ def paper_scene(
     image has the same camera, pose and effects, the board removed and
     :data:`PAPER_OBJECTS` on the table (none if ``objects=False``). The noise of the two
     images comes from two streams spawned from ``seed``.
+
+    ``board``: another board in the paper board's place, by type (:data:`PAPER_BOARDS`:
+    "circles", "chessboard", "charuco") or any board, its world origin at the table origin
+    (board and table coordinates agree); the objects image is the same whatever the board.
     """
+    if isinstance(board, str):
+        if board not in PAPER_BOARDS:
+            raise BoardError(
+                f"board must be one of {', '.join(PAPER_BOARDS)} or a board, got {board!r}"
+            )
+        board = PAPER_BOARDS[board]
+    elif not is_board(board):
+        raise BoardError(f"board must be a board or a board type, got {type(board).__name__}")
     camera = PAPER_CAMERA
     if not distortion:
         camera = dataclasses.replace(camera, k1=0.0, k2=0.0)
@@ -95,12 +134,10 @@ def paper_scene(
         raise ImageError(f"seed must be a non-negative whole number, got {seed!r}")
     seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(2)]
 
-    def render(
-        board: CircleGridBoard | None, things: Sequence[SceneObject], seed: int
-    ) -> RenderedScene:
+    def render(board: Board | None, things: Sequence[SceneObject], seed: int) -> RenderedScene:
         return _paper_render(camera, PAPER_POSE, board, things, seed, color=color)
 
-    calibration = render(PAPER_BOARD, (), seeds[0])
+    calibration = render(board, (), seeds[0])
     scene = render(None, PAPER_OBJECTS if objects else (), seeds[1])
     return PaperScene(calibration, scene)
 
@@ -152,7 +189,7 @@ def random_board_pose(
 def _paper_render(
     camera: CameraModel,
     pose: PlanePose,
-    board: CircleGridBoard | None,
+    board: Board | None,
     objects: Sequence[SceneObject],
     seed: int,
     *,
