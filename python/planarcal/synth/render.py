@@ -21,7 +21,13 @@ covers a pixel, its exact share of the pixel counted), uneven lighting (a multip
 in the image), a Gaussian blur, additive Gaussian noise (seeded), rounding to uint8.
 
 The dots' boundary and where dots touch: :mod:`planarcal.synth.dots`; objects with height
-(walls, tops, occlusion): :mod:`planarcal.synth.raised`.
+(walls, tops, occlusion): :mod:`planarcal.synth.raised`. A chessboard or a ChArUco board is
+drawn from its printed ink (``board.ink()``) by :mod:`planarcal.synth.pattern`: the page's
+rectangles cut it into atoms of one material each, and a cell is shaded by the exact area
+of each atom it meets (a polygon clip where an atom's corner lies in the cell), so squares
+meeting at a corner (X-junctions) and rectangles sharing an edge (a marker's cells) are
+exact, with no seam; only the circles of a chessboard's origin marker use the straight
+boundary above.
 
 Measured accuracy (tests/synth/test_synth.py, tests/synth/test_synth_boards.py): pixel
 values agree with a brute-force reference (1024 point samples per pixel) to 0.002 of the
@@ -48,6 +54,21 @@ symmetric one; four enlarged dots add about 15 %, both textures 45 %, 220 printe
 (numbers, arrows, text) 55 %. The whole corpus of
 :func:`~planarcal.synth.corpus.board_variants` renders in about 10 s (4 s of it the 4K
 image).
+
+Chessboards and ChArUco boards (tests/synth/test_synth_patterns.py): pixel values agree with
+the brute-force reference (32 x 32 point samples per pixel, each traced through the lens) to
+0.0016 of the contrast (0.00005 on average) through strong barrel distortion (k1 = -0.2), a
+25 degree tilt and a board turned 13 degrees, around X-junctions, an origin marker's white
+and black dots and ArUco markers' cells. X-junctions are unbiased: in a sharp, noise-free
+1280 x 720 render of a 9 x 6 chessboard (squares about 70 px) square on, tilted 30 and 45
+degrees, each corner where straight lines fitted to its two edges cross lies within 5e-6 px
+of its projected truth before rounding, within 0.0026 px (0.0016 px RMS, 33 corners) in
+the 8-bit image. OpenCV's ``CharucoDetector`` reads renders of both ChArUco layouts with
+every corner's id and within 0.2 px of the truth, ``findChessboardCornersSB`` a blurred,
+noisy render within 0.15 px. Time, in this process's CPU seconds at 1280 x 720 through the
+paper's webcam lens with blur and noise (wall-clock time on an idle 2-core machine is about
+the same): a 9 x 6 chessboard 0.8-1.0 s, a 7 x 5 ChArUco board 1.2-1.7 s, a 12 x 9 ChArUco
+board 1.8-2.6 s; a 3840 x 2160 chessboard or ChArUco board 4-5 s.
 """
 
 from __future__ import annotations
