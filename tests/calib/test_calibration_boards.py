@@ -28,7 +28,7 @@ from planarcal.calib.charuco import CharucoBoard
 from planarcal.calib.chessboard import ChessboardBoard
 from planarcal.calib.detection import BoardDetection
 from planarcal.camera import calibrate_camera
-from planarcal.errors import BoardError, CalibrationFileError, IntrinsicsError
+from planarcal.errors import ArgumentError, BoardError, CalibrationFileError, IntrinsicsError
 from planarcal.live.objects import board_region_px
 
 BOARDS: list[Board] = [
@@ -490,3 +490,17 @@ def test_intrinsics_from_the_command_line_with_a_chessboard(tmp_path: Path) -> N
     assert done.returncode == 0, done.stderr
     fx = json.loads(done.stdout)["camera_matrix"][0][0]
     assert fx == pytest.approx(CAMERA.focal_px, rel=0.01)
+
+
+@pytest.mark.parametrize("board", BOARDS, ids=lambda b: b.kind)
+def test_from_image_finds_and_calibrates_every_board_type(board: Board) -> None:
+    scene = _scene(board, _centred(board), 450.0)
+    cal = Calibration.from_image(scene.image, board)
+    assert cal.board == board and len(_ids(cal)) == board.n_points
+    truth = scene.points_px
+    assert np.abs(cal.image_to_world(truth) - board.world_points()).max() < 0.1
+    if board.kind != "circles":
+        with pytest.raises(ArgumentError, match=r"no option 'polarity'|no options, got polarity"):
+            Calibration.from_image(scene.image, board, polarity="dark")
+    with pytest.raises(BoardError, match="board must be one of"):
+        Calibration.from_image(scene.image, "board")  # type: ignore[arg-type]

@@ -53,6 +53,7 @@ from planarcal.calib.board_points import match_board_points
 from planarcal.calib.boards import BOARD_TYPES, Board, is_board
 from planarcal.calib.calibration_file import FILE_FORMAT, FILE_VERSION, READS_VERSIONS
 from planarcal.calib.detection import detect_board
+from planarcal.calib.detector_options import check_detector_options
 from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX, ErrorBudget, with_budget
 from planarcal.calib.extrapolation import Extrapolation, extrapolation
 from planarcal.calib.leave_one_out import homography_leave_one_out
@@ -321,6 +322,12 @@ class Calibration:
         """Detects `board` (any type) in `image` (array or path) and calibrates from what is
         found; ``detector_options`` go to the detector of the board's kind (a circle grid's
         ``polarity`` and ``turned``, see detect_board)."""
+        if not is_board(board):
+            raise BoardError(
+                f"board must be one of planarcal's boards ({', '.join(BOARD_TYPES)}), got "
+                f"{type(board).__name__}"
+            )
+        check_detector_options(board.kind, detector_options)
         detection = detect_board(image, board, **detector_options)
         return cls.from_detection(
             detection, solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
@@ -492,8 +499,9 @@ class Calibration:
         ``robot_frame`` set) from point pairs: robot points (N, 2) or (N, 3) with z, in mm,
         each paired with one of
 
-        * ``dots``: the index of the board dot the robot's tool touched (N,), k = row x cols
-          + col from the origin dot (``CircleGridBoard.world_points``);
+        * ``dots``: the id of the board point (a dot, a corner) the robot's tool touched
+          (N,), 0-based as ``board.world_points()`` numbers them (k = row x cols + col from
+          the origin point), whether or not the camera saw it;
         * ``board_mm``: the touched points' board positions (N, 2), mm;
         * ``image_px``: N-point, where the camera saw the part the robot placed (N, 2), px;
           mapped through this calibration, their 1-sigma goes into the fit's noise floor.

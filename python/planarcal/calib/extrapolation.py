@@ -85,7 +85,8 @@ class Extrapolation:
         return (
             f"the calibration's points cover {self.covered_share:.0%} of the image"
             + ("" if self.covers_centre else ", not its centre")
-            + f"; the rest is extrapolated: {worst}. Use positions there with care, or "
+            + "; the leave-one-out errors hold within their outline, the rest is "
+            + f"extrapolated: {worst}. Use positions there with care, or "
             "calibrate with the board where the parts will be"
         )
 
