@@ -185,6 +185,22 @@ def test_rectangles_sharing_an_edge_leave_no_seam() -> None:
     np.testing.assert_allclose(a.sum(axis=1), 1.0, atol=1e-12)
     inside = (np.abs(x - 5.0) < 4.5) & (np.abs(y - 5.0) < 4.5)
     np.testing.assert_allclose(b[inside, 2], 1.0, atol=1e-12)  # all ink, no seam
+    # Two rectangles meeting where rounding puts one's end a hair past the other's start
+    # (0.1 + 0.2 mm and 0.3 mm) are one line: no sliver of paper or double ink.
+    rounded = BoardInk(
+        np.array([[0.0, 0.0, 0.1 + 0.2, 1.0], [0.3, 0.0, 1.0, 1.0]]),
+        np.zeros((0, 4)),
+        (0.0, 0.0, 1.0, 1.0),
+    )
+    unit = BoardInk(np.array([[0.0, 0.0, 1.0, 1.0]]), np.zeros((0, 4)), (0.0, 0.0, 1.0, 1.0))
+    u, v = rng.uniform(-0.2, 1.2, (2, 5000))
+    small = tuple(0.05 * c[:5000] for c in cell)
+    np.testing.assert_allclose(
+        _Pattern(rounded, 0.5).coverage(u, v, small),
+        _Pattern(unit, 0.5).coverage(u, v, small),
+        atol=1e-12,
+    )
+    assert len(_Pattern(rounded, 0.5).xs) == 5  # the paper, the ink and the line between
 
 
 def test_a_marker_border_is_solid_ink() -> None:

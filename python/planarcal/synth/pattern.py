@@ -46,18 +46,24 @@ class _Pattern:
         self.paper = (fx0 - margin, fy0 - margin, fx1 + margin, fy1 + margin)
         rects = np.asarray(ink.rects, np.float64).reshape(-1, 4)
         px0, py0, px1, py1 = self.paper
-        self.xs = np.unique(np.concatenate([rects[:, 0], rects[:, 2], [px0, px1]]))
-        self.ys = np.unique(np.concatenate([rects[:, 1], rects[:, 3], [py0, py1]]))
+        # Edges closer than rounding (a rectangle's end computed apart from its neighbour's
+        # start) are one line: no atom a hair wide between rectangles that meet.
+        tol = 1e-9 * (1.0 + max(abs(v) for v in self.paper))
+        self.xs = _merged(np.concatenate([rects[:, 0], rects[:, 2], [px0, px1]]), tol)
+        self.ys = _merged(np.concatenate([rects[:, 1], rects[:, 3], [py0, py1]]), tol)
         # Atom (j, i) spans xs[i - 1]..xs[i] by ys[j - 1]..ys[j]; index 0 and the last are
         # the table beyond the page on each side (an index is searchsorted(..., "right")).
         grid = np.full((len(self.ys) + 1, len(self.xs) + 1), _TABLE, dtype=np.int8)
-        i0, i1 = np.searchsorted(self.xs, [px0, px1]) + 1
-        j0, j1 = np.searchsorted(self.ys, [py0, py1]) + 1
+
+        def line(edges: F64, values: F64 | list[float]) -> I64:
+            """The atom index just past each edge value (its merged line's)."""
+            return np.searchsorted(edges, np.asarray(values) - tol).astype(np.intp) + 1
+
+        i0, i1 = line(self.xs, [px0, px1])
+        j0, j1 = line(self.ys, [py0, py1])
         grid[j0:j1, i0:i1] = _PAPER
-        ri0 = np.searchsorted(self.xs, rects[:, 0]) + 1
-        ri1 = np.searchsorted(self.xs, rects[:, 2]) + 1
-        rj0 = np.searchsorted(self.ys, rects[:, 1]) + 1
-        rj1 = np.searchsorted(self.ys, rects[:, 3]) + 1
+        ri0, ri1 = line(self.xs, rects[:, 0]), line(self.xs, rects[:, 2])
+        rj0, rj1 = line(self.ys, rects[:, 1]), line(self.ys, rects[:, 3])
         for a, b, c, d in zip(rj0, rj1, ri0, ri1, strict=True):
             grid[a:b, c:d] = _INK
         self.grid = grid
@@ -154,6 +160,13 @@ class _Pattern:
             sel = np.flatnonzero(near_x & (y >= y0 - pad) & (y <= y1 + pad))
             if sel.size:
                 yield sel, material, circle.field(x[sel], y[sel])
+
+
+def _merged(values: F64, tol: float) -> F64:
+    """The distinct values, sorted, those within ``tol`` of the previous one dropped."""
+    v = np.unique(values)
+    keep = np.concatenate([[True], np.diff(v) > tol])
+    return np.asarray(v[keep], np.float64)
 
 
 class _Quadrants:

@@ -66,9 +66,10 @@ of its projected truth before rounding, within 0.0026 px (0.0016 px RMS, 33 corn
 the 8-bit image. OpenCV's ``CharucoDetector`` reads renders of both ChArUco layouts with
 every corner's id and within 0.2 px of the truth, ``findChessboardCornersSB`` a blurred,
 noisy render within 0.15 px. Time, in this process's CPU seconds at 1280 x 720 through the
-paper's webcam lens with blur and noise (wall-clock time on an idle 2-core machine is about
-the same): a 9 x 6 chessboard 0.8-1.0 s, a 7 x 5 ChArUco board 1.2-1.7 s, a 12 x 9 ChArUco
-board 1.8-2.6 s; a 3840 x 2160 chessboard or ChArUco board 4-5 s.
+paper's webcam lens with blur and noise (measured on a 2-core machine shared by other jobs,
+whose wall-clock times were three to four times these): a 9 x 6 chessboard 0.8-1.0 s, a
+7 x 5 ChArUco board 1.2-1.7 s, a 12 x 9 ChArUco board 1.8-2.6 s; a 3840 x 2160 chessboard
+or ChArUco board 4-5 s.
 """
 
 from __future__ import annotations
