@@ -389,7 +389,10 @@ def render_scene(
 
     ``supersample``: n for the n x n cells of each edge pixel (1-32; see the module's
     docstring). Cells are shaded by exact coverage, so 4 is already within 0.002 of the
-    contrast for 10-pixel dots; more only refines curvature and corners.
+    contrast for 10-pixel dots; more only refines curvature and corners. A chessboard's or a
+    ChArUco board's rectangles are exact in any cell: 1 renders them as accurately as 8
+    (against a 32 x 32-sample reference, 0.0015 of the contrast either way) in 40 % of the
+    time; its marker dots and the objects still take the straight-boundary rule.
 
     Errors: ValueError for a pose whose plane does not fill the view (its horizon is in the
     image) or for bad objects (one as high as the camera), BoardError for the board's
