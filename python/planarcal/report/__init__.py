@@ -20,6 +20,10 @@
   was refused) and the error, as PNG.
 * printable/: the board itself, printable at exact scale as SVG or PDF.
 
+Every table, text and figure works for any board (planarcal.calib.boards) whole or seen in
+part: points are named by the board's word for them and by their ids (point_names.py), and a
+partial view's detection figure draws the board's other points where the fit puts them.
+
 The figures share figure.py (the one check that matplotlib, the extra ``planarcal[report]``,
 is installed, a figure and its PNG), fits.py (the fit before the lens model) and mapping.py
 (where the image's pixels land on the plane). The tables and the summaries need no matplotlib;

@@ -7,15 +7,16 @@ import numpy as np
 
 from planarcal.calib.calibration import Calibration
 from planarcal.report.figure import new_figure, png
+from planarcal.report.point_names import calibration_ids, numbering, point_name
 
 
 def deviation_figure(cal: Calibration) -> bytes:
-    """The paper's Figure 5 (dX and dY per point, mm) and a vector field of the deviations
-    over the board, as PNG bytes."""
+    """The paper's Figure 5 (dX and dY per point, mm, over the points' ids) and a vector
+    field of the deviations over the board, as PNG bytes."""
     dev = cal.deviations_mm
     loo = cal.loo_deviations_mm
-    n = len(dev)
-    idx = np.arange(n)  # the dots' indices, 0 the origin dot, as everywhere
+    idx = calibration_ids(cal)  # the points' ids, 0 the origin, as everywhere
+    point = point_name(cal.board)
     fig = new_figure(12, 8)
     grid = fig.add_gridspec(2, 2, width_ratios=(1.15, 1))
     ax_dx = fig.add_subplot(grid[0, 0])
@@ -28,11 +29,11 @@ def deviation_figure(cal: Calibration) -> bytes:
         ax.set_ylabel(f"{name} (mm)")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="upper right", fontsize=8)
-    ax_dy.set_xlabel("dot (k = row x cols + col)")
+    ax_dy.set_xlabel(f"{point} ({numbering(cal.board)})")
     s = cal.summary()
     # Both units: the mm scale with the stated pitch, the px do not.
     ax_dx.set_title(
-        "Calibration deviation per dot (the paper's Figure 5); leave-one-out RMS "
+        f"Calibration deviation per {point} (the paper's Figure 5); leave-one-out RMS "
         f"{s.loo_rms_mm:.3f} mm, {s.loo_rms_px:.3f} px in the image"
     )
     ax_v = fig.add_subplot(grid[:, 1])

@@ -3,17 +3,31 @@ Figure 4) and the located objects (its Figure 6). PNG bytes out, for atomic writ
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
-from planarcal.errors import ImageError
+from planarcal.errors import ArgumentError, HomographyError, ImageError
+from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
+from planarcal.report.mapping import masked
+from planarcal.report.point_names import (
+    detection_ids,
+    grid_shape,
+    is_circle_grid,
+    missing_ids,
+    numbering,
+    plural,
+    point_name,
+)
 
 U8 = NDArray[np.uint8]
+F64 = NDArray[np.float64]
 
 
 def _canvas(image: Any) -> U8:
@@ -52,6 +66,11 @@ def dot_flags(detection: Any, name: str) -> NDArray[np.bool_] | None:
 # Colours (BGR) of the marks on dots the detection flags.
 UNREFINED_BGR = (0, 0, 255)
 ENLARGED_BGR = (255, 0, 255)
+# A partial view's points not seen, where the fit puts them: orange diamonds, unlabelled.
+NOT_SEEN_BGR = (0, 140, 255)
+# The most points not seen drawn (evenly spread over their ids): a board of a million
+# corners seen in part would otherwise bury the image.
+MAX_NOT_SEEN_DRAWN = 5000
 
 
 def homography_residual_note(residual_rms_px: float) -> str:
@@ -59,76 +78,112 @@ def homography_residual_note(residual_rms_px: float) -> str:
     return f"residual of the homography alone through the centres: {residual_rms_px:.3f} px RMS"
 
 
-def detection_label(detection: Any, residual_note: str | None = None) -> list[str]:
-    """The lines written on the detection figure: the board and finder, what the residual is
-    (`residual_note`, by default the detection's own: the homography alone), when the
-    detection flags dots, what their marks mean, and, when it measured them, the dots' size
-    (with what the labels number)."""
+def detection_label(
+    detection: Any, residual_note: str | None = None, *, not_seen_drawn: int | None = None
+) -> list[str]:
+    """The lines written on the detection figure: the board and finder (a ChArUco board's
+    printed layout), what the residual is (`residual_note`, by default the detection's own:
+    the homography alone), for a partial view how many of the board's points were seen (and,
+    `not_seen_drawn` of the others drawn, what their marks mean), when the detection flags
+    dots, what their marks mean, and, when it measured them, the dots' size (with what the
+    labels number)."""
     board = detection.board
-    lines = [
-        f"{board.cols} x {board.rows} board, {detection.method} finder, {detection.polarity} dots",
-        residual_note or homography_residual_note(detection.residual_rms_px),
-    ]
+    name = point_name(board)
+    if is_circle_grid(board):
+        first = (
+            f"{board.cols} x {board.rows} board, {detection.method} finder, "
+            f"{detection.polarity} dots"
+        )
+    else:
+        first = f"{board.describe()}, {detection.method} finder"
+        layout = getattr(detection, "layout", None)
+        if layout is not None:
+            first += f", {layout} layout"
+    lines = [first, residual_note or homography_residual_note(detection.residual_rms_px)]
+    seen, total = len(detection.image_points), int(board.n_points)
+    partial = seen < total
+    if partial:
+        line = f"partial view: {seen} of the board's {total} {plural(name, total)} seen"
+        if not_seen_drawn:
+            line += (
+                f"; orange diamonds: {not_seen_drawn} not seen, where the fit through those "
+                "seen puts them"
+            )
+        lines.append(line)
     refined = dot_flags(detection, "refined")
     if refined is not None and not refined.all():
         n = int((~refined).sum())
-        lines.append(f"red cross: {n} dot(s) not refined (a coarser centre kept)")
+        lines.append(f"red cross: {n} {name}(s) not refined (a coarser centre kept)")
     enlarged = dot_flags(detection, "enlarged")
     if enlarged is not None and enlarged.any():
-        lines.append(f"magenta ring: {int(enlarged.sum())} enlarged dot(s)")
+        lines.append(f"magenta ring: {int(enlarged.sum())} enlarged {name}(s)")
     sizes = getattr(detection, "sizes", None)
-    if sizes is not None:
+    if sizes is not None and is_circle_grid(board):
         lines.append(
             f"dots {sizes.diameter_mm:.3g} mm across at the stated pitch of {board.pitch:g} mm "
-            f"({sizes.diameter_to_pitch(board):.2f} of the pitch); labels: dot index k = row x "
-            "cols + col"
+            f"({sizes.diameter_to_pitch(board):.2f} of the pitch); labels: dot index "
+            f"{numbering(board)}"
         )
+    elif partial or not is_circle_grid(board):
+        lines.append(f"labels: each {name}'s id, {numbering(board)}")
     return lines
 
 
-def draw_detection(image: Any, detection: Any, *, residual_note: str | None = None) -> U8:
-    """The image with every found dot centre marked and labelled with its index k = row x
-    cols + col (0 the origin dot: the numbering of the CSV files, the API and the summary),
-    the grid drawn through them, the board's origin and X / Y directions, the dots the
-    detection flags (not refined: a red cross; enlarged: a magenta ring) and the lines of
-    `detection_label` (`residual_note`: which model the residual quoted comes from)."""
+def draw_detection(
+    image: Any,
+    detection: Any,
+    *,
+    residual_note: str | None = None,
+    calibration: Any = None,
+) -> U8:
+    """The image with every point found marked and labelled with its id (a grid board's
+    k = row x cols + col, 0 the origin: the numbering of the CSV files, the API and the
+    summary), the board's rows and columns drawn through them, the board's origin and X / Y
+    directions, the dots the detection flags (not refined: a red cross; enlarged: a magenta
+    ring) and the lines of `detection_label` (`residual_note`: which model the residual
+    quoted comes from). For a partial view, the board's other points in the image are drawn
+    where the fit through the points seen puts them (orange diamonds, unlabelled: not seen):
+    `calibration`'s (with its lens model) when given, else a homography through the points."""
     canvas = _canvas(image)
     s = _scale(canvas)
     board = detection.board
-    pts = detection.image_points
-    grid = pts.reshape(board.rows, board.cols, 2)
+    pts = np.asarray(detection.image_points, dtype=np.float64).reshape(-1, 2)
+    ids = detection_ids(detection)
     shift = 4  # sub-pixel drawing: coordinates in 1/16 px
     f = float(1 << shift)
 
     def ip(p: NDArray[np.float64]) -> tuple[int, int]:
         return round(p[0] * f), round(p[1] * f)
 
-    for r in range(board.rows):
+    for polyline in _lattice_lines(board, ids, pts):
         cv2.polylines(
             canvas,
-            [np.rint(grid[r] * f).astype(np.int32)],
+            [np.rint(polyline * f).astype(np.int32)],
             False,
             (255, 160, 0),
             max(1, int(s)),
             cv2.LINE_AA,
             shift,
         )
-    for c in range(board.cols):
-        cv2.polylines(
+    pitch = _pitch_px(detection)
+    radius = max(2.0, 0.12 * pitch)
+    project = _projector(board, ids, pts, calibration)
+    not_seen = _not_seen_in_image(board, ids, project, canvas.shape[:2])
+    for p in not_seen:
+        cv2.drawMarker(
             canvas,
-            [np.rint(grid[:, c] * f).astype(np.int32)],
-            False,
-            (255, 160, 0),
+            (round(p[0]), round(p[1])),
+            NOT_SEEN_BGR,
+            cv2.MARKER_DIAMOND,
+            max(4, int(2.5 * radius)),
             max(1, int(s)),
             cv2.LINE_AA,
-            shift,
         )
-    radius = max(2.0, 0.12 * detection.pitch_px)
-    for k, p in enumerate(pts):
+    for k, p in zip(ids, pts, strict=True):
         cv2.circle(canvas, ip(p), int(radius * f), (0, 0, 255), max(1, int(s)), cv2.LINE_AA, shift)
         cv2.putText(
             canvas,
-            str(k),
+            str(int(k)),
             (int(p[0] + radius), int(p[1] - radius)),
             cv2.FONT_HERSHEY_SIMPLEX,
             0.35 * s,
@@ -136,27 +191,133 @@ def draw_detection(image: Any, detection: Any, *, residual_note: str | None = No
             max(1, int(s)),
             cv2.LINE_AA,
         )
-    origin = grid[0, 0]
-    for end, label, colour in ((grid[0, 1], "X", (0, 0, 255)), (grid[1, 0], "Y", (0, 160, 0))):
-        tip = origin + 1.8 * (end - origin)
-        cv2.arrowedLine(
-            canvas, ip(origin), ip(tip), colour, max(2, int(2 * s)), cv2.LINE_AA, shift, 0.2
-        )
-        cv2.putText(
-            canvas,
-            label,
-            (int(tip[0] + 4), int(tip[1] + 4)),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.7 * s,
-            colour,
-            max(2, int(2 * s)),
-            cv2.LINE_AA,
-        )
+    axes = _axes_px(board, ids, pts, project)
+    if axes is not None:
+        origin, x_end, y_end = axes
+        for end, label, colour in ((x_end, "X", (0, 0, 255)), (y_end, "Y", (0, 160, 0))):
+            tip = origin + 1.8 * (end - origin)
+            cv2.arrowedLine(
+                canvas, ip(origin), ip(tip), colour, max(2, int(2 * s)), cv2.LINE_AA, shift, 0.2
+            )
+            cv2.putText(
+                canvas,
+                label,
+                (int(tip[0] + 4), int(tip[1] + 4)),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.7 * s,
+                colour,
+                max(2, int(2 * s)),
+                cv2.LINE_AA,
+            )
     _mark_flagged_dots(canvas, detection, s)
-    lines = _fitting_lines(detection_label(detection, residual_note), canvas.shape[1] - 20, s)
-    for k, line in enumerate(lines):
-        _label(canvas, line, (10, int((25 + 20 * k) * s)), s)
+    caption = detection_label(detection, residual_note, not_seen_drawn=len(not_seen))
+    for k, text in enumerate(_fitting_lines(caption, canvas.shape[1] - 20, s)):
+        _label(canvas, text, (10, int((25 + 20 * k) * s)), s)
     return canvas
+
+
+def _pitch_px(detection: Any) -> float:
+    """The points' spacing in the image (px), 10 px when it cannot be measured (one point)."""
+    pitch = float(detection.pitch_px)
+    return pitch if math.isfinite(pitch) and pitch > 0 else 10.0
+
+
+def _lattice_lines(board: Any, ids: NDArray[np.intp], pts: F64) -> list[F64]:
+    """The polylines drawn through the points found: on a grid board each row and column of
+    ids through its points, broken where a point was not seen; on another board each pair of
+    neighbouring points (the board's closest spacing apart) found."""
+    shape = grid_shape(board)
+    if shape is not None:
+        cols, rows = shape
+        flat = np.full((rows * cols, 2), np.nan)
+        flat[ids] = pts
+        grid = flat.reshape(rows, cols, 2)
+        return [
+            run
+            for line in (*(grid[r] for r in range(rows)), *(grid[:, c] for c in range(cols)))
+            for run in _finite_runs(line)
+        ]
+    world = np.asarray(board.world_points(), dtype=np.float64)[ids]
+    if len(world) < 2:
+        return []
+    spacing = float(cKDTree(world).query(world, k=2)[0][:, 1].min())
+    pairs = cKDTree(world).query_pairs(1.01 * spacing, output_type="ndarray")
+    return [pts[[a, b]] for a, b in pairs]
+
+
+def _finite_runs(line: F64) -> list[F64]:
+    """The stretches of two or more consecutive finite points of a polyline."""
+    ok = np.isfinite(line).all(axis=1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
+    return [line[a:b] for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= 2]
+
+
+Projection = Callable[[F64], F64]
+
+
+def _projector(board: Any, ids: NDArray[np.intp], pts: F64, calibration: Any) -> Projection | None:
+    """Board mm -> image px through the fit (NaN where a point has no place in the image):
+    the calibration's, lens model and all, when given; else a homography through the points
+    found (None with fewer than four, or in a line)."""
+    if calibration is not None:
+        scale = np.asarray(calibration.world_scale, dtype=np.float64)
+        return lambda world: masked(calibration.world_to_image, world * scale, 2)
+    if len(pts) < 4:
+        return None
+    try:
+        h = estimate_homography(np.asarray(board.world_points(), dtype=np.float64)[ids], pts)
+    except (HomographyError, ArgumentError):
+        return None
+    return lambda world: transform_points(h, world, invalid="nan")
+
+
+def _not_seen_in_image(
+    board: Any, ids: NDArray[np.intp], project: Projection | None, shape: tuple[int, ...]
+) -> F64:
+    """Where the fit puts the board's points not seen (at most MAX_NOT_SEEN_DRAWN of them),
+    those inside the image, px (K, 2)."""
+    missing = missing_ids(board, ids)
+    if project is None or not len(missing):
+        return np.zeros((0, 2))
+    if len(missing) > MAX_NOT_SEEN_DRAWN:
+        missing = missing[np.linspace(0, len(missing) - 1, MAX_NOT_SEEN_DRAWN).astype(np.intp)]
+    px = project(np.asarray(board.world_points(), dtype=np.float64)[missing])
+    h, w = shape
+    with np.errstate(invalid="ignore"):
+        inside = (px[:, 0] >= -0.5) & (px[:, 0] < w - 0.5) & (px[:, 1] >= -0.5)
+        inside &= px[:, 1] < h - 0.5
+    return np.asarray(px[inside], dtype=np.float64)
+
+
+def _axes_px(
+    board: Any, ids: NDArray[np.intp], pts: F64, project: Projection | None
+) -> tuple[F64, F64, F64] | None:
+    """The board's origin (point 0) and its next points along X and Y (on a grid, ids 1 and
+    cols; else a pitch along each axis), px: where they were found, else where the fit puts
+    them; None when neither says."""
+    world = np.asarray(board.world_points(), dtype=np.float64)
+    shape = grid_shape(board)
+    step = float(getattr(board, "pitch", 0.0) or 1.0)
+    anchors: list[tuple[int | None, F64]] = [(0, world[0])]
+    for axis, along in ((0, 1), (1, shape[0] if shape is not None else 0)):
+        if shape is not None and 0 < along < len(world) and shape[axis] > 1:
+            anchors.append((along, world[along]))
+        else:
+            offset = np.zeros(2)
+            offset[axis] = step
+            anchors.append((None, world[0] + offset))
+    out = []
+    for point_id, mm in anchors:
+        found = np.flatnonzero(ids == (-1 if point_id is None else point_id))
+        if len(found):
+            out.append(pts[int(found[0])])
+        elif project is not None:
+            out.append(project(mm.reshape(1, 2))[0])
+        else:
+            return None
+    if not np.isfinite(out).all():
+        return None
+    return out[0], out[1], out[2]
 
 
 def _mark_flagged_dots(canvas: U8, detection: Any, s: float) -> None:
@@ -164,7 +325,7 @@ def _mark_flagged_dots(canvas: U8, detection: Any, s: float) -> None:
     pts = detection.image_points
     refined = dot_flags(detection, "refined")
     enlarged = dot_flags(detection, "enlarged")
-    size = max(8, int(0.5 * detection.pitch_px))
+    size = max(8, int(0.5 * _pitch_px(detection)))
     if refined is not None:
         for x, y in pts[~refined]:
             cv2.drawMarker(

@@ -1,5 +1,10 @@
 """When the board is not found: the image with what the search saw (the blobs, each candidate
-grid and why it was refused) and the error, as a figure and as text."""
+grid and why it was refused) and the error, as a figure and as text.
+
+Any board's detector may fail; only the circle grid's records what it saw today
+(planarcal.calib.detect.DetectionDiagnostics). A record of another kind is drawn as far as it
+has the same parts (its ``board``, ``image_size``, ``blobs``, ``candidates``), and none at
+all (None) leaves the image and the message."""
 
 from __future__ import annotations
 
@@ -9,14 +14,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planarcal.files import atomic_write
 from planarcal.report.drawing import rgb_image
 from planarcal.report.figure import new_figure, png
+from planarcal.report.point_names import is_circle_grid
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
+
+F64 = NDArray[np.float64]
 
 DETECTION_FAILED_PNG = "detection_failed.png"
 """The failure figure's name in the report directory."""
@@ -33,7 +42,7 @@ def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> byte
     (circles of their diameter), each candidate grid (its points joined in order, numbered
     and labelled with its finder and polarity), and beside it the error message and why each
     candidate was refused. `diagnostics`: a DetectionDiagnostics, or None (the image and the
-    message alone)."""
+    message alone; a record of another kind, as far as it has the parts drawn)."""
     picture = rgb_image(image)
     h, w = picture.shape[:2]
     # The image panel is about 10 in wide: a height that fits its aspect, room for the text.
@@ -42,8 +51,8 @@ def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> byte
     ax = fig.add_subplot(grid[0, 0])
     ax.imshow(picture, interpolation="nearest")
     if diagnostics is not None:
-        _draw_seen_blobs(ax, diagnostics.blobs)
-        _draw_candidates(ax, diagnostics.candidates)
+        _draw_seen_blobs(ax, _blobs(diagnostics))
+        _draw_candidates(ax, _candidates(diagnostics))
         if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
     ax.set_xlim(-0.5, w - 0.5)
@@ -65,17 +74,62 @@ def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> byte
     return png(fig)
 
 
-def _draw_seen_blobs(ax: Axes, blobs: Any) -> None:
+def _blobs(diagnostics: Any) -> list[tuple[str, F64, F64]]:
+    """The record's blobs as (polarity, centres (N, 2) px, diameters (N,) px), those it
+    holds in that shape; none when it has no blobs."""
+    out = []
+    for seen in _sequence(getattr(diagnostics, "blobs", None)):
+        centres = _array(getattr(seen, "centres_px", None))
+        diameters = _array(getattr(seen, "diameters_px", None))
+        if centres is None or diameters is None or centres.size != 2 * diameters.size:
+            continue
+        out.append((str(getattr(seen, "polarity", "")), centres.reshape(-1, 2), diameters))
+    return out
+
+
+def _candidates(diagnostics: Any) -> list[tuple[str, str, F64, str]]:
+    """The record's refused candidates as (method, polarity, points (K, 2) px, reason);
+    none when it has none."""
+    out = []
+    for cand in _sequence(getattr(diagnostics, "candidates", None)):
+        points = _array(getattr(cand, "points_px", None))
+        if points is None or points.size % 2:
+            continue
+        out.append(
+            (
+                str(getattr(cand, "method", "?")),
+                str(getattr(cand, "polarity", "")),
+                points.reshape(-1, 2),
+                str(getattr(cand, "reason", "")),
+            )
+        )
+    return out
+
+
+def _sequence(value: Any) -> tuple[Any, ...]:
+    return tuple(value) if isinstance(value, list | tuple) else ()
+
+
+def _array(value: Any) -> F64 | None:
+    """A finite float array of `value`, or None when it is not one."""
+    try:
+        out = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        return None
+    return out if np.isfinite(out).all() else None
+
+
+def _draw_seen_blobs(ax: Axes, blobs: list[tuple[str, F64, F64]]) -> None:
     """Each polarity's blobs as circles of their diameter, one colour per polarity."""
     from matplotlib.collections import PatchCollection  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
     from matplotlib.lines import Line2D  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
     from matplotlib.patches import Circle  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
 
-    for seen in blobs:
-        colour = _BLOB_COLOURS.get(seen.polarity, "tab:gray")
+    for polarity, centres, diameters in blobs:
+        colour = _BLOB_COLOURS.get(polarity, "tab:gray")
         circles = [
             Circle((float(x), float(y)), 0.5 * float(d))
-            for (x, y), d in zip(seen.centres_px, seen.diameters_px, strict=True)
+            for (x, y), d in zip(centres, diameters, strict=True)
         ]
         ax.add_collection(
             PatchCollection(circles, facecolor="none", edgecolor=colour, linewidth=1.2)
@@ -89,17 +143,16 @@ def _draw_seen_blobs(ax: Axes, blobs: Any) -> None:
                 marker="o",
                 mfc="none",
                 mec=colour,
-                label=f"{len(circles)} {seen.polarity} blobs seen",
+                label=f"{len(circles)} {_word(polarity)}blobs seen",
             )
         )
 
 
-def _draw_candidates(ax: Axes, candidates: Any) -> None:
+def _draw_candidates(ax: Axes, candidates: list[tuple[str, str, F64, str]]) -> None:
     """Each refused candidate grid: its points joined in order, its number at its first
     point, its finder and polarity in the legend."""
-    for k, cand in enumerate(candidates):
+    for k, (method, polarity, pts, _) in enumerate(candidates):
         colour = _CANDIDATE_COLOURS[k % len(_CANDIDATE_COLOURS)]
-        pts = np.asarray(cand.points_px, dtype=np.float64).reshape(-1, 2)
         ax.plot(
             pts[:, 0],
             pts[:, 1],
@@ -108,7 +161,7 @@ def _draw_candidates(ax: Axes, candidates: Any) -> None:
             lw=1.0,
             ms=2.5,
             alpha=0.85,
-            label=f"{k + 1}: {cand.method}, {cand.polarity} dots ({len(pts)} points)",
+            label=f"{k + 1}: {method}{_polarity(polarity)} ({len(pts)} points)",
         )
         if len(pts):
             ax.annotate(
@@ -131,29 +184,60 @@ def detection_failure_text(diagnostics: Any, message: str, width: int = 62, most
     if diagnostics is None:
         paragraphs.append("(no record of what the search saw)")
         return "\n".join(paragraphs)
-    b = diagnostics.board
-    w, h = diagnostics.image_size
-    paragraphs.append(f"Looking for {b.cols} x {b.rows} dots in the {w} x {h} image.")
-    for seen in diagnostics.blobs:
-        d = np.asarray(seen.diameters_px, dtype=np.float64)
+    looking = _looking_for(diagnostics)
+    if looking:
+        paragraphs.append(textwrap.fill(looking, width))
+    blobs, candidates = _blobs(diagnostics), _candidates(diagnostics)
+    for polarity, _, d in blobs:
         size = f", about {float(np.median(d)):.0f} px across" if d.size else ""
-        paragraphs.append(f"Blobs seen: {len(d)} {seen.polarity}{size}")
+        paragraphs.append(f"Blobs seen: {len(d)}{' ' * bool(polarity)}{polarity}{size}")
+    if not hasattr(diagnostics, "candidates"):
+        return "\n".join(paragraphs)  # a record that keeps no candidates: nothing to add
     paragraphs.append("")
-    if not diagnostics.candidates:
+    if not candidates:
         paragraphs.append("No candidate grid was put forward.")
     else:
         paragraphs.append("Candidate grids refused:")
-        for k, cand in enumerate(diagnostics.candidates[:most]):
+        for k, (method, polarity, _, reason) in enumerate(candidates[:most]):
             paragraphs.append(
                 textwrap.fill(
-                    f"{k + 1}. {cand.method} ({cand.polarity} dots): {cand.reason}",
+                    f"{k + 1}. {method}{_polarity(polarity, ' (', ')')}: {reason}",
                     width,
                     subsequent_indent="   ",
                 )
             )
-        if len(diagnostics.candidates) > most:
-            paragraphs.append(f"... and {len(diagnostics.candidates) - most} more")
+        if len(candidates) > most:
+            paragraphs.append(f"... and {len(candidates) - most} more")
     return "\n".join(paragraphs)
+
+
+def _polarity(polarity: str, before: str = ", ", after: str = "") -> str:
+    """ "dark dots" as a candidate's label says it, or nothing for a record without one."""
+    return f"{before}{polarity} dots{after}" if polarity else ""
+
+
+def _word(polarity: str) -> str:
+    """ "dark " before "blobs", nothing for a record without a polarity."""
+    return f"{polarity} " if polarity else ""
+
+
+def _looking_for(diagnostics: Any) -> str:
+    """What the search looked for, where: "Looking for 14 x 10 dots in the 1280 x 720
+    image." (a circle grid), the board's own description for another; empty when the record
+    says neither."""
+    board: Any = getattr(diagnostics, "board", None)
+    if is_circle_grid(board):
+        what = f"{board.cols} x {board.rows} dots"
+    elif hasattr(board, "describe"):
+        what = f"a {board.describe()}"
+    else:
+        what = "the board"
+    size: Any = getattr(diagnostics, "image_size", None)
+    try:
+        w, h = (int(v) for v in size)
+    except (TypeError, ValueError):
+        return "" if board is None else f"Looking for {what}."
+    return f"Looking for {what} in the {w} x {h} image."
 
 
 def write_detection_failure(

@@ -16,6 +16,7 @@ from planarcal.images import as_grey
 from planarcal.report.figure import new_figure, outline_mm, png
 from planarcal.report.fits import fitted_parameters, homography_alone
 from planarcal.report.mapping import displacement, masked
+from planarcal.report.point_names import plural, point_name
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -197,7 +198,8 @@ def _displacement_panel(ax: Axes, fig: Figure, cal: Calibration) -> None:
         width=0.0035,
     )
     outline = masked(cal.world_to_image, outline_mm(cal), 2)
-    ax.plot(outline[:, 0], outline[:, 1], color="tab:cyan", lw=1.8, label="board (outer dots)")
+    names = plural(point_name(cal.board), 2)
+    ax.plot(outline[:, 0], outline[:, 1], color="tab:cyan", lw=1.8, label=f"board (outer {names})")
     if cal.lens is not None:
         (cx, cy), (sx, sy) = cal.lens.centre_px, cal.lens.centre_std_px
         what = (

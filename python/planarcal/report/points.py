@@ -1,7 +1,9 @@
 """The per-point table as CSV: the paper's Tables 2-4 and the leave-one-out error, every
-point, with the detection's flags for each dot. Dots are numbered as everywhere in planarcal
-(the touch CSV, the API, the summary, the detection figure): by their index k = row x cols
-+ col, 0 the origin dot."""
+point, with the detection's flags for each dot. Points are numbered as everywhere in
+planarcal (the touch CSV, the API, the summary, the detection figure): by their id, k = row x
+cols + col on a grid board, 0 the origin; a partial view has the ids of the points seen. The
+first column is named by the board's word for its points: "dot" (a circle grid, and points
+without a board), "corner" (a chessboard, a ChArUco board)."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from typing import Any
 
 from planarcal.calib.calibration import Calibration
 from planarcal.report.drawing import dot_flags
+from planarcal.report.point_names import calibration_ids, grid_shape, point_name
 
 CSV_COLUMNS = (
     "dot",
@@ -39,22 +42,23 @@ CSV_COLUMNS = (
 
 
 def points_csv(cal: Calibration, detection: Any = None) -> str:
-    """The per-point table as CSV: the dot's index (``dot``: k = row x cols + col, 0 the
-    origin dot; the row of ``world_points`` without a board), its row and column on the
-    board (when known), world and image coordinates, reprojection (Table 3), world after calibration
-    and deviations (Table 4), the leave-one-out deviation and error (mm, and px in the
-    image), the leave-one-out error the fit's covariance predicts (1-sigma, mm), and whether
-    the detection refined the dot's centre and found it enlarged (1 / 0; empty when the
-    detection does not say)."""
+    """The per-point table as CSV: the point's id (``dot`` or ``corner``, the board's word:
+    k = row x cols + col on a grid, 0 the origin; the row of ``world_points`` without a
+    board), its row and column on the board (when it is a grid), world and image
+    coordinates, reprojection (Table 3), world after calibration and deviations (Table 4),
+    the leave-one-out deviation and error (mm, and px in the image), the leave-one-out error
+    the fit's covariance predicts (1-sigma, mm), and whether the detection refined the
+    point's centre and found it enlarged (1 / 0; empty when the detection does not say)."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
-    cols = cal.board.cols if cal.board is not None else None
+    writer.writerow((point_name(cal.board), *CSV_COLUMNS[1:]))
+    shape = grid_shape(cal.board)
+    ids = calibration_ids(cal, detection)
     n = len(cal.world_points)
     refined = _flag_column(detection, "refined", n)
     enlarged = _flag_column(detection, "enlarged", n)
     for i in range(n):
-        row, col = ("", "") if cols is None else divmod(i, cols)
+        row, col = ("", "") if shape is None else divmod(int(ids[i]), shape[0])
         values = [
             *cal.world_points[i],
             *cal.image_points[i],
@@ -69,7 +73,7 @@ def points_csv(cal: Calibration, detection: Any = None) -> str:
         ]
         writer.writerow(
             [
-                i,
+                int(ids[i]),
                 row,
                 col,
                 *(f"{v:.6f}" if math.isfinite(v) else "" for v in values),

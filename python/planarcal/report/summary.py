@@ -4,10 +4,13 @@ board can flatter, and on the plane, mm, which scale with the stated pitch), the
 (from the pixels), the lens model (its parameters, the models tried and why this one, the
 figures before and after it), the uncertainty the covariance predicts against the measured
 one, the printer-scale correction, and what the detection reported (the dots' measured
-sizes among it); and the residual line the detection figure carries.
+sizes among it); and the residual line the detection figure carries. Whatever the board:
+its type, how many of its points were seen (a partial view) and, when the calibration
+reaches well beyond them, what the rest of the image is predicted at.
 
-Dots are named by their index k = row x cols + col, 0 the origin dot: the numbering of the
-CSV files, the API and the detection figure."""
+Points are named by the board's word for them (a circle grid's dots, a chessboard's or
+ChArUco board's corners) and their ids, on a grid k = row x cols + col, 0 the origin: the
+numbering of the CSV files, the API and the detection figure."""
 
 from __future__ import annotations
 
@@ -21,6 +24,16 @@ from planarcal.calib.calibration import Calibration, CalibrationSummary
 from planarcal.report.drawing import dot_flags, homography_residual_note
 from planarcal.report.fits import fitted_parameters, homography_alone
 from planarcal.report.mapping import max_displacement_px
+from planarcal.report.point_names import (
+    calibration_ids,
+    detection_ids,
+    id_list,
+    is_circle_grid,
+    layout_phrase,
+    missing_ids,
+    plural,
+    point_name,
+)
 
 
 def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
@@ -60,7 +73,10 @@ def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
         before = homography_alone(cal)
         out["before_after"] = {"before": _figures(before), "after": _figures(cal)}
     if cal.board is not None:
-        out["board"] = cal.board.to_dict()
+        out.update(_board_json(cal.board, calibration_ids(cal, detection)))
+    extrapolation = _extrapolation_json(cal)
+    if extrapolation is not None:
+        out["extrapolation"] = extrapolation
     if cal.image_size is not None:
         out["image_size_px"] = list(cal.image_size)
     if detection is not None:
@@ -68,23 +84,73 @@ def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
     return {k: _finite_or_none(v) for k, v in out.items()}
 
 
-def _detection_json(detection: Any) -> dict[str, Any]:
-    """The finder, the polarity and the pitch; and, when the detection carries them, the
-    dots not refined and the enlarged ones (their indices k = row x cols + col, 0 the origin
-    dot, as in the CSV files and the API), the orientation and the warnings."""
+def _board_json(board: Any, ids: NDArray[np.intp]) -> dict[str, Any]:
+    """The board (its description, type and words), how many of its points the calibration
+    holds (`ids`) and, for a partial view, their ids (the order of points.csv) and those not
+    seen."""
     out: dict[str, Any] = {
-        "method": detection.method,
-        "polarity": detection.polarity,
-        "pitch_px": detection.pitch_px,
-        "residual_rms_px": detection.residual_rms_px,
+        "board": board.to_dict(),
+        "board_type": board.kind,
+        "board_description": board.describe(),
+        "point_name": point_name(board),
+        "n_board_points": int(board.n_points),
+        "partial": len(ids) < board.n_points,
     }
+    if out["partial"]:
+        out["point_ids"] = [int(k) for k in ids]
+        out["not_seen_ids"] = [int(k) for k in missing_ids(board, ids)]
+    return out
+
+
+def _extrapolation(cal: Calibration) -> Any:
+    """The calibration's word on the image beyond its points (``Calibration.extrapolation``),
+    or None where it has none."""
+    try:
+        return getattr(cal, "extrapolation", None)
+    except (ValueError, ArithmeticError):  # a model that cannot map the image at all
+        return None
+
+
+def _extrapolation_json(cal: Calibration) -> dict[str, Any] | None:
+    ex = _extrapolation(cal)
+    if ex is None:
+        return None
+    if hasattr(ex, "to_dict"):
+        out: dict[str, Any] = dict(ex.to_dict())
+    else:
+        out = {
+            name: getattr(ex, name)
+            for name in ("covered_share", "covered_std_mm", "image_std_mm", "warning")
+            if hasattr(ex, name)
+        }
+    return out
+
+
+def _detection_json(detection: Any) -> dict[str, Any]:
+    """The finder, a circle grid's polarity, and the pitch; and, when the detection carries
+    them, how many of the board's points it found, the printed layout it found (ChArUco), the
+    dots not refined and the enlarged ones (their ids, k = row x cols + col on a grid, 0 the
+    origin, as in the CSV files and the API), the orientation and the warnings."""
+    board = detection.board
+    out: dict[str, Any] = {"method": detection.method}
+    if is_circle_grid(board):
+        out["polarity"] = detection.polarity
+    out["pitch_px"] = detection.pitch_px
+    out["residual_rms_px"] = detection.residual_rms_px
+    ids = detection_ids(detection)
+    if getattr(detection, "ids", None) is not None:
+        out["n_points_found"] = len(ids)
+        out["partial"] = len(ids) < board.n_points
+    layout = getattr(detection, "layout", None)
+    if layout is not None:
+        out["layout"] = str(layout)
     refined = dot_flags(detection, "refined")
     if refined is not None:
         out["n_not_refined"] = int((~refined).sum())
-        out["not_refined_dots"] = _dot_indices(~refined)
+        out["not_refined_dots"] = _dot_indices(ids, ~refined)
     enlarged = dot_flags(detection, "enlarged")
     if enlarged is not None:
-        out["enlarged_dots"] = _dot_indices(enlarged)
+        out["enlarged_dots"] = _dot_indices(ids, enlarged)
     orientation = _orientation(detection)
     if orientation is not None:
         out["orientation"] = orientation
@@ -93,20 +159,20 @@ def _detection_json(detection: Any) -> dict[str, Any]:
     if warnings is not None:
         out["warnings"] = list(warnings)
     sizes = getattr(detection, "sizes", None)
-    if sizes is not None:
-        out["dot_sizes"] = sizes.to_dict(detection.board)
+    if sizes is not None and is_circle_grid(board):
+        out["dot_sizes"] = sizes.to_dict(board)
     return out
 
 
-def _dot_indices(flags: NDArray[np.bool_]) -> list[int]:
-    """The indices of the flagged dots: k = row x cols + col, 0 the origin dot (the one
+def _dot_indices(ids: NDArray[np.intp], flags: NDArray[np.bool_]) -> list[int]:
+    """The ids of the flagged points: k = row x cols + col on a grid, 0 the origin (the one
     numbering of the CSV files, the API, the text and the detection figure)."""
-    return [int(k) for k in np.flatnonzero(flags)]
+    return [int(k) for k in ids[flags]]
 
 
 def _orientation(detection: Any) -> str | None:
-    """How dot 0 was chosen: "origin marker", "ambiguous: <the rule applied>", or None when
-    the detection does not say."""
+    """How point 0 was chosen: "origin marker", "ambiguous: <the rule applied>", or None
+    when the detection does not say."""
     orientation = getattr(detection, "orientation", None)
     if orientation is None:
         return None
@@ -214,36 +280,32 @@ def _lens_text(cal: Calibration) -> list[str]:
 
 
 def _detection_text(detection: Any) -> list[str]:
-    """The detection's orientation, dots not refined, enlarged dots and warnings, as far as
-    it carries them."""
+    """The detection's printed layout, orientation, points not refined, enlarged dots and
+    warnings, as far as it carries them."""
     lines = []
+    name = point_name(detection.board)
+    ids = detection_ids(detection)
+    layout = layout_phrase(getattr(detection, "layout", None))
+    if layout is not None:
+        lines.append(f"Printed layout found: {layout}")
     orientation = _orientation(detection)
     if orientation is not None:
-        lines.append(f"Orientation (which dot is the origin): {orientation}")
+        lines.append(f"Orientation (which {name} is the origin): {orientation}")
     refined = dot_flags(detection, "refined")
     if refined is not None:
         n = len(refined)
         if refined.all():
-            lines.append(f"Centres refined: all {n} dots")
+            lines.append(f"Centres refined: all {n} {plural(name, n)}")
         else:
             lines.append(
-                f"Centres refined: {int(refined.sum())} of {n} dots; not refined (a coarser "
-                f"centre kept): {_dot_list(~refined)}"
+                f"Centres refined: {int(refined.sum())} of {n} {plural(name, n)}; not refined "
+                f"(a coarser centre kept): {id_list(ids[~refined], name)}"
             )
     enlarged = dot_flags(detection, "enlarged")
     if enlarged is not None and enlarged.any():
-        lines.append(f"Enlarged dots: {_dot_list(enlarged)}")
+        lines.append(f"Enlarged {plural(name, 2)}: {id_list(ids[enlarged], name)}")
     lines += [f"Warning: {w}" for w in _warnings(detection) or ()]
     return lines
-
-
-def _dot_list(flags: NDArray[np.bool_], most: int = 20) -> str:
-    """ "dot 3" or "dots 3, 17, 40" (indices, 0 the origin dot), the first `most` of a long
-    list."""
-    numbers = _dot_indices(flags)
-    shown = ", ".join(str(k) for k in numbers[:most])
-    more = f" and {len(numbers) - most} more" if len(numbers) > most else ""
-    return f"dot{'s' if len(numbers) > 1 else ''} {shown}{more}"
 
 
 # Leave-one-out RMS in the image (px) up to which a calibration is called excellent, good,
@@ -263,33 +325,34 @@ def verdict(s: CalibrationSummary) -> str:
 
 
 _VERDICT_TEXT = {
-    "excellent": "the model fits every dot it has not seen to a tenth of a pixel or better",
-    "good": "the model fits the dots it has not seen to a few tenths of a pixel",
+    "excellent": "the model fits every {name} it has not seen to a tenth of a pixel or better",
+    "good": "the model fits the {names} it has not seen to a few tenths of a pixel",
     "fair": (
-        "the dots stray from the model by up to a pixel: a paper that is not flat, a lens "
-        "the model does not capture, or dots mislocated (see the deviations figure)"
+        "the {names} stray from the model by up to a pixel: a paper that is not flat, a lens "
+        "the model does not capture, or {names} mislocated (see the deviations figure)"
     ),
     "poor": (
-        "the dots stray from the model by more than a pixel: the board is not flat, moved, "
+        "the {names} stray from the model by more than a pixel: the board is not flat, moved, "
         "or is not the board described; calibrate again"
     ),
     "unknown": "too few points to leave one out",
 }
 
 
-def _verdict_text(s: CalibrationSummary) -> str:
+def _verdict_text(s: CalibrationSummary, name: str = "dot") -> str:
     word = verdict(s)
     figure = f" (leave-one-out RMS {s.loo_rms_px:.3f} px)" if math.isfinite(s.loo_rms_px) else ""
-    return f"Verdict: {word}{figure}: {_VERDICT_TEXT[word]}"
+    text = _VERDICT_TEXT[word].format(name=name, names=plural(name, 2))
+    return f"Verdict: {word}{figure}: {text}"
 
 
 def _sizes_text(detection: Any) -> list[str]:
     """The dots' measured size against the stated one (and the marker's), as far as the
     detection carries them."""
     sizes = getattr(detection, "sizes", None)
-    if sizes is None:
-        return []
     board = detection.board
+    if sizes is None or not is_circle_grid(board):
+        return []
     pitch = float(board.pitch)
     measured = (
         f"Dot size: {sizes.diameter_mm:.3g} mm measured at the stated pitch of {pitch:g} mm "
@@ -332,7 +395,7 @@ def residual_note(cal: Calibration) -> str:
     return f"{note}; {_model_phrase(cal)}: {cal.stats.rms:.3f} px RMS"
 
 
-def _budget_text(cal: Calibration) -> list[str]:
+def _budget_text(cal: Calibration, name: str = "dot") -> list[str]:
     """What std_mm covers, and how big it is at the board's centre."""
     b = cal.error_budget
     try:
@@ -345,44 +408,49 @@ def _budget_text(cal: Calibration) -> list[str]:
         f"Error bars (std_mm): {exact:.4f} mm at the board's centre for an exact pixel, "
         f"{part:.4f} mm for a located part",
         f"  (the fit's covariance, the model's bias of {b.model_sigma_px:.4f} px per "
-        f"coordinate: the dots' lens bias {b.dot_bias_px:.4f} px, the lens model's "
+        f"coordinate: the {plural(name, 2)}' lens bias {b.dot_bias_px:.4f} px, the lens model's "
         f"{b.lens_bias_px:.4f} px; and a part's centroid error, {b.detector_px:g} px)",
     ]
 
 
 def summary_text(cal: Calibration, detection: Any = None) -> str:
-    """A readable summary of the calibration."""
+    """A readable summary of the calibration: the board and how much of it was seen, the
+    detection's findings, the fit, its errors and uncertainty, and for points that cover only
+    part of the image, what the rest is predicted at."""
     s = cal.summary()
+    name = point_name(cal.board if cal.board is not None else getattr(detection, "board", None))
+    names = plural(name, 2)
+    ids = calibration_ids(cal, detection)
     lines = []
     if cal.board is not None:
         b = cal.board
         lines.append(f"Board: {b.describe()}")
     if detection is not None:
-        w, h = detection.image_size
-        lines.append(
-            f"Found all {s.n_points} dots in the {w} x {h} image ({detection.method} finder, "
-            f"{detection.polarity} dots, {detection.pitch_px:.1f} px apart)"
-        )
+        lines += _found_text(detection)
         lines += _detection_text(detection)
         lines += _sizes_text(detection)
+    elif cal.board is not None and len(ids) < cal.board.n_points:
+        lines += _seen_text(cal.board, ids)
     fit = f"{s.solver}" + (" + Levenberg-Marquardt" if s.refine else "")
+    worst = f"{name} {ids[cal.stats.argmax]}" if len(ids) else "-"
+    pitch = "square" if hasattr(cal.board, "square") else "pitch"
     lines += [
         f"Homography: {fit}, from {s.n_points} points",
         f"Lens: {cal.lens_note}",
         *_lens_text(cal),
         f"Reprojection error (px), {_model_phrase(cal)}: mean {s.mean_px:.3f}, "
-        f"RMS {s.rms_px:.3f}, max {s.max_px:.3f} (dot {cal.stats.argmax}), "
+        f"RMS {s.rms_px:.3f}, max {s.max_px:.3f} ({worst}), "
         f"min {s.min_px:.3f}",
         f"Leave-one-out error (px): mean {s.loo_mean_px:.3f}, RMS {s.loo_rms_px:.3f}, "
         f"max {s.loo_max_px:.3f}",
-        "  (each dot predicted in the image by a fit made without it: the accuracy to expect",
+        f"  (each {name} predicted in the image by a fit made without it: the accuracy to expect",
         "  at points the calibration has not seen; the residuals above flatter the fit)",
-        _verdict_text(s),
+        _verdict_text(s, name),
         f"World coordinates after calibration: |dX| <= {s.max_abs_dx_mm:.3f} mm, "
         f"|dY| <= {s.max_abs_dy_mm:.3f} mm",
         f"Leave-one-out error (mm): mean {s.loo_mean_mm:.3f}, RMS {s.loo_rms_mm:.3f}, "
         f"max {s.loo_max_mm:.3f}",
-        "  (millimetres at the board's stated pitch: a wrong pitch scales every one of them,",
+        f"  (millimetres at the board's stated {pitch}: a wrong {pitch} scales every one of them,",
         "  these errors too; the figures in px above do not depend on it)",
     ]
     ratio = _ratio(s.loo_rms_mm, s.predicted_loo_rms_mm)
@@ -392,10 +460,11 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
             f"{s.predicted_loo_rms_mm:.4f} mm, measured {s.loo_rms_mm:.4f} mm "
             f"(ratio {ratio:.2f})",
             "  (near 1: the residuals are the noise the fit assumes; well above 1: the model",
-            "  misses something they do not show as noise; neither sees a bias all the dots",
+            f"  misses something they do not show as noise; neither sees a bias all the {names}",
             "  share, which the error bars below add)",
         ]
-    lines += _budget_text(cal)
+    lines += _budget_text(cal, name)
+    lines += _extrapolation_text(cal)
     if tuple(cal.world_scale) != (1.0, 1.0):
         sx, sy = cal.world_scale
         lines.append(
@@ -403,3 +472,58 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
             f"({100 * (sx - 1):+.2f} %, {100 * (sy - 1):+.2f} %)"
         )
     return "\n".join(lines)
+
+
+def _found_text(detection: Any) -> list[str]:
+    """What the detection found: all of the board or how much of it, where, by which finder
+    (with a circle grid's polarity), and for a partial view which points were not seen."""
+    board = detection.board
+    name = point_name(board)
+    ids = detection_ids(detection)
+    seen, total = len(ids), int(board.n_points)
+    w, h = detection.image_size
+    how = [f"{detection.method} finder"]
+    if is_circle_grid(board):
+        how.append(f"{detection.polarity} dots")
+    how.append(f"{detection.pitch_px:.1f} px apart")
+    if seen >= total:
+        found = f"all {seen} {plural(name, seen)}"
+    else:
+        found = f"{seen} of the board's {total} {plural(name, total)} (a partial view)"
+    lines = [f"Found {found} in the {w} x {h} image ({', '.join(how)})"]
+    if seen < total:
+        lines.append(f"  not seen: {id_list(missing_ids(board, ids), name)}")
+    return lines
+
+
+def _seen_text(board: Any, ids: NDArray[np.intp]) -> list[str]:
+    """A partial view's points, without its detection: how many of the board's, and which
+    were not seen."""
+    name = point_name(board)
+    total = int(board.n_points)
+    return [
+        f"Calibrated from {len(ids)} of the board's {total} {plural(name, total)} (a partial view)",
+        f"  not seen: {id_list(missing_ids(board, ids), name)}",
+    ]
+
+
+def _extrapolation_text(cal: Calibration) -> list[str]:
+    """How much of the image the calibration's points cover and what it predicts beyond
+    them, with its warning when the rest is extrapolated (``Calibration.extrapolation``)."""
+    ex = _extrapolation(cal)
+    if ex is None:
+        return []
+    share = getattr(ex, "covered_share", math.nan)
+    at_points = getattr(ex, "covered_std_mm", math.nan)
+    anywhere = getattr(ex, "image_std_mm", math.nan)
+    warning = getattr(ex, "warning", None)
+    if warning:  # it gives the figures
+        return [f"Warning: {warning}"]
+    lines = []
+    if all(isinstance(v, float) and math.isfinite(v) for v in (share, at_points, anywhere)):
+        lines.append(
+            f"Coverage: the points' outline covers {100 * share:.0f} % of the image; the "
+            f"mapping's 1-sigma is up to {at_points:.3g} mm at the points, {anywhere:.3g} mm "
+            "at worst elsewhere in the image (an exact pixel)"
+        )
+    return lines

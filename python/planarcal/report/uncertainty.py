@@ -1,7 +1,9 @@
 """The uncertainty figure: the 1-sigma position uncertainty of an exact pixel (mm, from the
 fit's covariance and the model's bias, calib.error_budget) as a heat map over the working
 area on the plane, with where it doubles relative to the board's centre; the title says
-what a located part's own centroid error adds."""
+what a located part's own centroid error adds. When the points cover only part of the image
+(a partial view, a board in one corner) the working area is the whole image, and the title
+carries the calibration's warning that the rest is extrapolated."""
 
 from __future__ import annotations
 
@@ -14,11 +16,38 @@ from planarcal.calib.calibration import Calibration
 from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX
 from planarcal.report.figure import new_figure, outline_mm, png
 from planarcal.report.mapping import MAP_ERRORS, mappable, masked
+from planarcal.report.point_names import calibration_ids, plural, point_name
+
+
+def _extrapolation_warning(cal: Calibration) -> str | None:
+    """The calibration's warning that most of the image is extrapolated, if it gives one."""
+    try:
+        ex = getattr(cal, "extrapolation", None)
+    except (ValueError, ArithmeticError):
+        return None
+    warning = getattr(ex, "warning", None)
+    return warning if isinstance(warning, str) and warning else None
+
+
+def _partial(cal: Calibration) -> bool:
+    """Whether the calibration holds only some of its board's points."""
+    board = cal.board
+    return board is not None and len(calibration_ids(cal)) < board.n_points
+
+
+def _whole_image(cal: Calibration) -> bool:
+    """Whether the working area is the whole image: the points cover only part of what the
+    camera will be used for (a partial view, or the calibration warns of extrapolation)."""
+    return cal.image_size is not None and (_partial(cal) or _extrapolation_warning(cal) is not None)
 
 
 def _working_region_px(cal: Calibration) -> tuple[float, float, float, float]:
     """(x0, x1, y0, y1): the image region around the board, extended by half the board's
-    size each way, clipped to the image."""
+    size each way, clipped to the image; the whole image when the points cover only part of
+    it (``_whole_image``)."""
+    if cal.image_size is not None and _whole_image(cal):
+        w, h = cal.image_size
+        return 0.0, w - 1.0, 0.0, h - 1.0
     lo, hi = cal.image_points.min(axis=0), cal.image_points.max(axis=0)
     half = 0.5 * (hi - lo)
     lo, hi = lo - half, hi + half
@@ -125,8 +154,23 @@ def uncertainty_figure(cal: Calibration) -> bytes:
             where = f"it stays under twice that here (at most x{hi / c:.2f})"
     else:
         where = "no residual error to scale it by"
+    name = point_name(cal.board)
+    names = plural(name, 2)
+    partial = _partial(cal)
     outline = outline_mm(cal)
-    ax.plot(outline[:, 0], outline[:, 1], color="w", lw=1.0, ls="--", label="board (outer dots)")
+    seen = f"{names} seen" if partial else names
+    ax.plot(outline[:, 0], outline[:, 1], color="w", lw=1.0, ls="--", label=f"board (outer {seen})")
+    if partial and cal.board is not None:
+        whole = cal.board.world_points() * np.asarray(cal.world_scale, dtype=np.float64)
+        (bx0, by0), (bx1, by1) = whole.min(axis=0), whole.max(axis=0)
+        ax.plot(
+            [bx0, bx1, bx1, bx0, bx0],
+            [by0, by0, by1, by1, by0],
+            color="tab:orange",
+            lw=1.2,
+            ls=":",
+            label=f"whole board (outer {names}, not all seen)",
+        )
     ax.scatter(
         world[:, 0],
         world[:, 1],
@@ -134,7 +178,7 @@ def uncertainty_figure(cal: Calibration) -> bytes:
         color="k",
         edgecolors="w",
         linewidths=0.4,
-        label="board's dots",
+        label=f"board's {seen}",
         zorder=3,
     )
     ax.plot(
@@ -150,7 +194,7 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     ax.legend(
         loc="upper center",
         bbox_to_anchor=(0.5, -0.08),
-        ncols=4,
+        ncols=3 if partial else 4,  # a partial view's fifth entry: two rows of three
         fontsize=9,
         facecolor="0.75",
         markerscale=1.5,
@@ -160,13 +204,21 @@ def uncertainty_figure(cal: Calibration) -> bytes:
     ax.set_xlabel("X (mm)")
     ax.set_ylabel("Y (mm)")
     clipped = ", clipped to the image" if cal.image_size is not None else ""
+    area = (
+        f"the whole image (the {names} seen cover only part of it)"
+        if _whole_image(cal)
+        else f"the board's image region extended by half its size each way{clipped}"
+    )
+    warning = _extrapolation_warning(cal)
     ax.set_title(
         "1-sigma position uncertainty on the plane of an exact pixel, from the fit's covariance "
         "and the model's bias\n"
         f"(a located part's centroid error, {OUTLINE_CENTROID_SIGMA_PX:g} px, makes it "
         f"{part_std:.3g} mm at the board's centre)\n"
-        f"Working area: the board's image region extended by half its size each way{clipped}."
-        f"\n{c:.3g} mm at the board's centre; white contours at multiples of it; {where}",
+        f"Working area: {area}."
+        f"\n{c:.3g} mm at the board's centre; white contours at multiples of it; {where}"
+        + ("" if warning is None else "\n" + textwrap.fill(f"Warning: {warning}", 110)),
         fontsize=10,
+        color="k" if warning is None else "tab:red",
     )
     return png(fig)

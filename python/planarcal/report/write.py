@@ -28,8 +28,10 @@ def write_report(
 ) -> list[Path]:
     """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png and (with an
     image and its detection) detection.png into `out_dir` (created if need be), each
-    atomically; returns the paths written. Without matplotlib (the extra ``planarcal[report]``)
-    raises MissingDependencyError before writing anything."""
+    atomically; returns the paths written. Any board, whole or seen in part: a partial
+    view's detection figure draws the board's other points where the calibration puts them.
+    Without matplotlib (the extra ``planarcal[report]``) raises MissingDependencyError before
+    writing anything."""
     require_matplotlib()  # before the tables: no half-written report
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -44,6 +46,6 @@ def write_report(
         atomic_write(out / "uncertainty.png", uncertainty_figure(cal)),
     ]
     if image is not None and detection is not None:
-        drawn = draw_detection(image, detection, residual_note=residual_note(cal))
+        drawn = draw_detection(image, detection, residual_note=residual_note(cal), calibration=cal)
         written.append(atomic_write(out / "detection.png", png_bytes(drawn)))
     return written
