@@ -504,3 +504,22 @@ def test_from_image_finds_and_calibrates_every_board_type(board: Board) -> None:
             Calibration.from_image(scene.image, board, polarity="dark")
     with pytest.raises(BoardError, match="board must be one of"):
         Calibration.from_image(scene.image, "board")  # type: ignore[arg-type]
+
+
+def test_pixels_beyond_the_planes_horizon_have_no_predicted_error() -> None:
+    # A view so oblique that the plane's horizon crosses the image (x = 500 px here): the
+    # pixels beyond it see no point of the plane, and no error bar is made up for them.
+    board = ChessboardBoard(9, 6, 25.0)
+    h = np.array([[2.0, 0.0, 20.0], [0.0, 2.0, 20.0], [0.004, 0.0, 1.0]])
+    world = board.world_points()
+    ideal = np.c_[world, np.ones(len(world))] @ h.T
+    image = ideal[:, :2] / ideal[:, 2:] + np.random.default_rng(11).normal(0, 0.05, world.shape)
+    cal = Calibration(world, image, board=board, image_size=(640, 480), lens="none")
+    ex = cal.extrapolation
+    assert ex is not None and ex.image_std_mm == np.inf
+    beyond = ex.grid_px[:, 0] > 501.0
+    assert np.isinf(ex.grid_std_mm[beyond]).all() and np.isfinite(ex.grid_std_mm[~beyond]).all()
+    assert ex.warning is not None and "has no place on the plane" in ex.warning
+    data = cal.to_dict()
+    assert data["summary"]["image_std_mm"] is None
+    assert Calibration.from_dict(data).summary().image_std_mm == np.inf
