@@ -82,6 +82,9 @@ OPENCV_MAX_BLOBS = 600
 
 # A partial view needs this many dots, on at least three lattice lines each way.
 MIN_PARTIAL_DOTS = 8
+# Of a partial view's dots, up to one in this many may stray from their neighbours (partly
+# hidden) and be left out.
+PARTIAL_STRAY_SHARE = 8
 # Lattices tried as partial views per polarity, largest first.
 MAX_PARTIAL_LATTICES = 3
 
@@ -531,18 +534,30 @@ def _finish_partial(
         ids, centres, areas, enlarged = ids[agree], centres[agree], areas[agree], enlarged[agree]
     if len(ids) < MIN_PARTIAL_DOTS:
         raise _RefusedError(f"only {len(ids)} dots of the partial view could be measured")
+    # A partial view's edge dots are often partly hidden (by the object that hides the
+    # rest): up to one in PARTIAL_STRAY_SHARE may stray, and is left out.
     checked, ok, doubts = _checked_by_neighbours(
-        centres, areas, np.ones(len(ids), bool), enlarged, board, pitch, world=world[ids]
+        centres,
+        areas,
+        np.ones(len(ids), bool),
+        enlarged,
+        board,
+        pitch,
+        world=world[ids],
+        allowed=max(2, max_holes(board), len(ids) // PARTIAL_STRAY_SHARE),
     )
-    del checked
+    del checked, doubts
+    ok &= _checked_when_alone(world[ids], centres, ok, board, pitch)
     warnings: tuple[str, ...] = ()
     if not ok.all():
         warnings = (
-            f"{int((~ok).sum())} dot(s) left out: far from where their neighbours put them "
-            f"(partly hidden?): {', '.join(str(k) for k in ids[~ok][:6])}",
+            f"{int((~ok).sum())} dot(s) left out, far from where their neighbours put them or "
+            f"with too few neighbours to tell (partly hidden?): "
+            f"{', '.join(str(k) for k in ids[~ok][:8])}",
         )
         ids, centres, areas, enlarged = ids[ok], centres[ok], areas[ok], enlarged[ok]
-    del doubts
+    if len(ids) < MIN_PARTIAL_DOTS:
+        raise _RefusedError(f"only {len(ids)} dots of the partial view agree with each other")
     if orientation == "ambiguous" and not kinds.any():
         warnings = (*warnings, *_turned_check(centres, world[ids], board, turned))
     try:
@@ -585,6 +600,40 @@ def _finish_partial(
         warnings=warnings,
         sizes=dot_sizes,
     )
+
+
+def _checked_when_alone(
+    world: F64, centres: F64, ok: NDArray[np.bool_], board: CircleGridBoard, pitch: float
+) -> NDArray[np.bool_]:
+    """Which dots of a partial view pass the neighbours' check: a dot with too few checked
+    neighbours within two steps (between the fingers of a hand, beside dots left out) is
+    checked against those within three, as strictly as the rest against theirs (twice the
+    limit: a wider fit bends less with the lens); one that cannot be checked is left out (a
+    partly hidden dot looks like a dot)."""
+    ok = ok.copy()
+    near = _predict_from_neighbours(world, centres, world, board, known=ok)
+    gap = np.hypot(*(centres - near).T)
+    checked = ok & np.isfinite(gap)
+    typical = float(np.median(gap[checked])) if checked.any() else 0.0
+    limit = 2.0 * float(
+        np.clip(10.0 * typical, MIN_DISAGREEMENT_PX, NEIGHBOUR_DISAGREEMENT_PITCH * pitch)
+    )
+    for _ in range(len(world)):
+        lone = np.flatnonzero(ok & ~checked)
+        if not lone.size:
+            break
+        wide = _predict_from_neighbours(
+            world, centres, world[lone], board, known=checked, steps=3.0
+        )
+        wide_gap = np.hypot(*(centres[lone] - wide).T)
+        good = np.isfinite(wide_gap) & (wide_gap < limit)
+        checked[lone[good]] = True
+        if good.all():
+            break
+        if not good.any():
+            ok[lone] = False
+            break
+    return ok & checked
 
 
 def _partial_reading(
@@ -651,6 +700,7 @@ def _checked_by_neighbours(
     pitch: float,
     *,
     world: F64 | None = None,
+    allowed: int | None = None,
 ) -> tuple[F64, NDArray[np.bool_], tuple[str, ...]]:
     """Each centre against the homography through the dots around it (two steps on the
     board; the board's bend by the lens is smooth over that, however strong the lens): a dot
@@ -658,7 +708,8 @@ def _checked_by_neighbours(
     than its neighbours, keeps their prediction instead, flagged as not refined. The worst
     goes first and no longer predicts its neighbours, so one bad dot does not condemn the
     dots around it. More such dots than a board may miss is no board: refused. `world`: the
-    dots' board positions (mm), every dot of the board in order when None."""
+    dots' board positions (mm), every dot of the board in order when None; `allowed`: how
+    many dots may stray (a whole board's max_holes, at least 2, when None)."""
     world = board.world_points() if world is None else world
     neighbourhoods = _around(world, 2.01 * board.neighbour_distance)
     trusted = np.ones(len(world), dtype=bool)
@@ -681,7 +732,7 @@ def _checked_by_neighbours(
     typical = float(np.nanmedian(gap)) if np.isfinite(gap).any() else 0.0
     floor = MIN_DISAGREEMENT_PX
     limit = float(np.clip(10.0 * typical, floor, max(floor, NEIGHBOUR_DISAGREEMENT_PITCH * pitch)))
-    allowed = max(2, max_holes(board))
+    allowed = max(2, max_holes(board)) if allowed is None else allowed
     while len(why) <= allowed:
         excess = np.where(trusted & np.isfinite(gap), gap / limit, 0.0)
         k = int(np.argmax(excess))
