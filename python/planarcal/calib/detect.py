@@ -633,7 +633,8 @@ def _checked_when_alone(
         if not good.any():
             ok[lone] = False
             break
-    return ok & checked
+    kept: NDArray[np.bool_] = ok & checked
+    return kept
 
 
 def _partial_reading(
