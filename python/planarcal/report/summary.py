@@ -37,7 +37,13 @@ from planarcal.report.point_names import (
 
 
 def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
-    """The summary as one JSON-ready object (NaN becomes null)."""
+    """The summary as one JSON-ready object (NaN becomes null). With a board: ``board``
+    (its description as the calibration file holds it), ``board_type``,
+    ``board_description``, ``point_name`` ("dot", "corner"), ``n_board_points``,
+    ``partial`` and, for a partial view, ``point_ids`` (the order of points.csv) and
+    ``not_seen_ids``; ``extrapolation``: the points' coverage of the image and the error
+    predicted beyond them, with its ``warning`` (Calibration.extrapolation); ``detection``:
+    what the detection found (see summary_text)."""
     s = cal.summary()
     out: dict[str, Any] = {
         "n_points": s.n_points,
