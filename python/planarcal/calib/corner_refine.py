@@ -29,11 +29,12 @@ F64 = NDArray[np.float64]
 
 MIN_RADIUS_PX = 2.5
 """The smallest fitting window's half-width (px)."""
-MAX_RADIUS_PX = 9.0
+MAX_RADIUS_PX = 12.0
 """The largest fitting window's half-width (px): enough for any blur a corner survives."""
 MIN_SIGMA_PX = 0.2
-ITERATIONS = 10
-"""Levenberg-Marquardt steps per corner (they converge in 4-6 on real and rendered corners)."""
+ITERATIONS = 30
+"""The most Levenberg-Marquardt steps per corner (most converge in 5-10; a converged corner
+takes no more)."""
 MAX_SHIFT = 0.6
 """A corner that moves farther than this fraction of its window from its start is no corner
 the model recognises (a marker dot, an occluded corner): not refined."""
@@ -154,25 +155,29 @@ def _levenberg_marquardt(
     cost, hess, grad = _normal_equations(resid, jac, w)
     lam = np.full(len(theta), 1e-3)
     eye = np.eye(7)
+    # Corners still moving; a converged one costs nothing more.
+    active = np.arange(len(theta))
     for _ in range(steps):
-        diag = np.einsum("nii->ni", hess)
-        damped = hess + (lam[:, None, None] * (diag[:, :, None] + 1e-9)) * eye
-        step = _solve(damped, -grad)
-        trial = theta + step
-        trial[:, 4] = np.clip(np.abs(trial[:, 4]), MIN_SIGMA_PX, np.maximum(rad, 1.0))
-        t_resid, t_jac = _residual_jacobian(values, px, py, trial)
-        t_cost = (w * t_resid**2).sum(axis=1)
-        better = np.isfinite(t_cost) & (t_cost <= cost)
-        lam = np.where(better, np.maximum(lam * 0.3, 1e-7), lam * 10.0)
+        a = active
+        diag = np.einsum("nii->ni", hess[a])
+        damped = hess[a] + (lam[a, None, None] * (diag[:, :, None] + 1e-9)) * eye
+        step = _solve(damped, -grad[a])
+        trial = theta[a] + step
+        trial[:, 4] = np.clip(np.abs(trial[:, 4]), MIN_SIGMA_PX, np.maximum(rad[a], 1.0))
+        t_resid, t_jac = _residual_jacobian(values[a], px[a], py[a], trial)
+        t_cost = (w[a] * t_resid**2).sum(axis=1)
+        better = np.isfinite(t_cost) & (t_cost <= cost[a])
+        lam[a] = np.where(better, np.maximum(lam[a] * 0.3, 1e-7), lam[a] * 10.0)
         if better.any():
-            theta[better] = trial[better]
+            b = a[better]
+            theta[b] = trial[better]
             # The window's weights move with the estimate.
-            w_b = _weights(px[better], py[better], theta[better, :2], rad[better], inside[better])
-            w[better] = w_b
-            cost[better], hess[better], grad[better] = _normal_equations(
-                t_resid[better], t_jac[better], w_b
-            )
-        if np.abs(step[:, :2]).max() < 1e-3:
+            w[b] = _weights(px[b], py[b], theta[b, :2], rad[b], inside[b])
+            cost[b], hess[b], grad[b] = _normal_equations(t_resid[better], t_jac[better], w[b])
+        # Done: an accepted step below 1e-4 px, or damping that no step gets past.
+        done = (better & (np.abs(step[:, :2]).max(axis=1) < 1e-4)) | (lam[a] > 1e6)
+        active = a[~done]
+        if active.size == 0:
             break
     return theta
 

@@ -141,6 +141,7 @@ class _Reading:
     t: I64
     orientation: Orientation
     rule: str
+    warnings: tuple[str, ...] = ()
 
 
 class _RefusedError(Exception):
@@ -180,10 +181,10 @@ def detect_chessboard(
             break
         except _RefusedError as e:
             refusals.append(f"{grid.method}: {e}")
-    diagnostics = finder.diagnostics()
     if turned_error is not None:
-        raise BoardTurnedError(str(turned_error), diagnostics)
-    raise BoardNotFoundError(_explain(board, finder, refusals), diagnostics)
+        raise BoardTurnedError(str(turned_error), finder.diagnostics())
+    message = _explain(board, finder, refusals)  # probes for the largest grid in view
+    raise BoardNotFoundError(message, finder.diagnostics())
 
 
 def _as_u8(grey: NDArray[np.uint8] | NDArray[np.float32]) -> U8:
@@ -490,31 +491,38 @@ def _plain_reading(points: F64, levels: F64, board: ChessboardBoard, turned: boo
     clear = [r for r, a in zip(readings, agree, strict=True) if a >= 0.9]
     if best_agree >= 0.9 and len(clear) == 1 and min(agree) <= 0.1:
         only = clear[0]
-        return _Reading(only.m, only.t, "pattern", PATTERN_CHESS_RULE)
-    if best_agree >= 0.9:
-        readings = clear
+        best = _Reading(only.m, only.t, "pattern", PATTERN_CHESS_RULE)
+    else:
+        if best_agree >= 0.9:
+            readings = clear
 
-    # Corner 0 nearest the image's top-left.
-    def first_corner(r: _Reading) -> float:
-        cr = _corner_coords(points.shape[:2], r)
-        at = np.argwhere((cr[..., 0] == 0) & (cr[..., 1] == 0))[0]
-        return float(np.hypot(*points[at[0], at[1]]))
+        # Corner 0 nearest the image's top-left.
+        def first_corner(r: _Reading) -> float:
+            cr = _corner_coords(points.shape[:2], r)
+            at = np.argwhere((cr[..., 0] == 0) & (cr[..., 1] == 0))[0]
+            return float(np.hypot(*points[at[0], at[1]]))
 
-    best = min(readings, key=first_corner)
-    if board.cols != board.rows:
-        cr = _corner_coords(points.shape[:2], best)
-        p0 = points[(cr[..., 0] == 0) & (cr[..., 1] == 0)][0]
-        p1 = points[(cr[..., 0] == 1) & (cr[..., 1] == 0)][0]
-        x_axis = p1 - p0
-        if abs(x_axis[1]) > abs(x_axis[0]) and not turned:
-            raise BoardTurnedError(
-                f"found {board.rows} x {board.cols} inner corners (across x down the image), "
-                f"described {board.cols} x {board.rows}: the board lies turned by 90 degrees "
-                f"in the image, or --cols and --rows are swapped (--cols {board.rows} --rows "
-                f"{board.cols}?). If it really lies turned, accept its frame as it is with "
-                "--turned (turned=True)."
-            )
-    return best
+        best = min(readings, key=first_corner)
+    if board.cols == board.rows:
+        return best
+    # A non-square board whose only reading runs its rows down the image: --cols and --rows
+    # swapped, most often.
+    cr = _corner_coords(points.shape[:2], best)
+    p0 = points[(cr[..., 0] == 0) & (cr[..., 1] == 0)][0]
+    p1 = points[(cr[..., 0] == 1) & (cr[..., 1] == 0)][0]
+    x_axis = p1 - p0
+    if abs(x_axis[1]) <= abs(x_axis[0]):
+        return best
+    if not turned:
+        raise BoardTurnedError(
+            f"found {board.rows} x {board.cols} inner corners (across x down the image), "
+            f"described {board.cols} x {board.rows}: the board lies turned by 90 degrees "
+            f"in the image, or --cols and --rows are swapped (--cols {board.rows} --rows "
+            f"{board.cols}?). If it really lies turned, accept its frame as it is with "
+            "--turned (turned=True)."
+        )
+    warning = "the board lies turned by 90 degrees in the image (accepted: turned)"
+    return dataclasses.replace(best, warnings=(warning,))
 
 
 def _detection(
@@ -530,21 +538,34 @@ def _detection(
     pts = points.reshape(-1, 2)
     ok = refined.refined.copy()
     contrast = refined.contrast
-    warnings: list[str] = []
+    warnings: list[str] = list(reading.warnings)
     inside = (cr[:, 0] >= 0) & (cr[:, 0] < board.cols) & (cr[:, 1] >= 0) & (cr[:, 1] < board.rows)
     if reading.orientation == "marker":
         _check_not_larger(cr, inside, ok, board)
+    reference = float(np.median(contrast[ok])) if ok.any() else 0.0
+    # A finder's corner is the board's only where the image shows an X-corner there.
+    axes = _grid_axes(points).reshape(-1, 2, 2)
+    ok &= _x_shaped(grey, pts, axes, reference)
     known: dict[tuple[int, int], tuple[F64, bool]] = {
         (int(c), int(r)): (pts[k], bool(ok[k])) for k, (c, r) in enumerate(cr) if inside[k]
     }
+    _flag_strays(known)
     if reading.orientation == "marker":
         # A marker fixes every corner: unrefined ones are dropped, the rest of the board in
         # view is grown.
         known = {key: val for key, val in known.items() if val[1]}
-        reference = float(np.median(contrast[ok])) if ok.any() else 0.0
         _grow(grey, known, board, reference)
     else:
         _check_no_continuation(grey, points, refined, board)
+        # A corner that could not be refined (at the image's edge, under glare) takes where
+        # its refined neighbours put it, flagged; the finder's own guess is coarser.
+        good = {key: val for key, val in known.items() if val[1]}
+        bad = [key for key, val in known.items() if not val[1]]
+        if bad and len(good) >= 5:
+            predicted, _ = _local_prediction(good, bad)
+            for key, p in zip(bad, predicted, strict=True):
+                if np.isfinite(p).all():
+                    known[key] = (p, False)
     ids = np.array(sorted(r * board.cols + c for c, r in known), dtype=np.intp)
     if len(ids) < 4:
         raise _RefusedError("fewer than 4 corners of the board found")
@@ -554,8 +575,9 @@ def _detection(
     )
     if not refined_flags.all():
         warnings.append(
-            f"{int((~refined_flags).sum())} of {len(ids)} corners could not be refined and "
-            "keep OpenCV's position (coarser)"
+            f"{int((~refined_flags).sum())} of {len(ids)} corners could not be refined (at "
+            "the image's edge, under glare?): placed where their neighbours put them, flagged "
+            "as not refined"
         )
     world = board.world_points()[ids]
     try:
@@ -617,6 +639,31 @@ def _local_prediction(
     return out, axes
 
 
+def _flag_strays(known: dict[tuple[int, int], tuple[F64, bool]]) -> None:
+    """Flag (as not refined) each corner far from where its neighbours' homography puts it
+    (a finder's corner on an occluder's edge), the worst first, so that one bad corner does
+    not condemn its neighbours. In place."""
+    keys = list(known.keys())
+    for _ in range(len(keys)):
+        good = {k: v for k, v in known.items() if v[1]}
+        if len(good) < 6:
+            return
+        worst, worst_excess = None, 1.0
+        for key in good:
+            others = {k: v for k, v in good.items() if k != key}
+            predicted, axes = _local_prediction(others, [key])
+            if not np.isfinite(predicted).all():
+                continue
+            step = float(np.min(np.linalg.norm(axes[0], axis=1)))
+            gap = float(np.hypot(*(good[key][0] - predicted[0])))
+            excess = gap / max(0.15 * step, 1.0)
+            if excess > worst_excess:
+                worst, worst_excess = key, excess
+        if worst is None:
+            return
+        known[worst] = (known[worst][0], False)
+
+
 def _x_corners(
     grey: NDArray[np.uint8] | NDArray[np.float32], predicted: F64, axes: F64, reference: float
 ) -> tuple[F64, NDArray[np.bool_]]:
@@ -636,9 +683,37 @@ def _x_corners(
     step = np.min(np.linalg.norm(axes[idx], axis=2), axis=1)
     moved = np.hypot(*(res.points - predicted[idx]).T)
     ok = res.refined & (moved < 0.25 * step) & (res.contrast > 0.4 * reference)
+    ok &= _x_shaped(grey, res.points, axes[idx], reference)
     found[idx] = ok
     points[idx] = res.points
     return points, found
+
+
+def _x_shaped(
+    grey: NDArray[np.uint8] | NDArray[np.float32], points: F64, axes: F64, reference: float
+) -> NDArray[np.bool_]:
+    """Whether the four squares about each point are an X-corner's: opposite ones alike,
+    neighbouring ones of the board's contrast (where a board's edge meets the paper, a
+    T-junction, two neighbouring squares are paper)."""
+    quads = []
+    for su, sv in ((1, 1), (-1, -1), (1, -1), (-1, 1)):
+        samples = []
+        for f in (0.16, 0.21, 0.26):  # clear of a marker dot (radius 0.2 of a square)
+            pos = points + f * (su * axes[:, 0] + sv * axes[:, 1])
+            samples.append(pos)
+        pos_all = np.stack(samples, axis=1)  # (N, 3, 2)
+        mx = pos_all[..., 0].astype(np.float32)
+        my = pos_all[..., 1].astype(np.float32)
+        src = grey if grey.dtype == np.float32 else grey.astype(np.float32)
+        vals = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        quads.append(vals.mean(axis=1))
+    pp, mm, pm, mp = quads
+    contrast_a = np.abs(pp - pm)
+    contrast_b = np.abs(mm - mp)
+    alike = np.maximum(np.abs(pp - mm), np.abs(pm - mp))
+    same_sign = np.sign(pp - pm) == np.sign(mm - mp)
+    strong = np.minimum(contrast_a, contrast_b) > 0.4 * reference
+    return np.asarray(same_sign & strong & (alike < 0.3 * np.minimum(contrast_a, contrast_b)))
 
 
 def _grow(
