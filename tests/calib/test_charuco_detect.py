@@ -19,7 +19,7 @@ from conftest import SHARED
 from planarcal.calib.charuco import CharucoBoard
 from planarcal.calib.detect_charuco import detect_charuco, marker_cells
 from planarcal.calib.detection import BoardDetection
-from planarcal.errors import ArgumentError, BoardMismatchError, BoardNotFoundError
+from planarcal.errors import ArgumentError, BoardError, BoardMismatchError, BoardNotFoundError
 
 F64 = NDArray[np.float64]
 REAL = SHARED / "data" / "real"
@@ -243,3 +243,10 @@ def test_real_photographs_at_least_opencv_and_no_wrong_id(name: str, photo: str)
     square_px = found.pitch_px
     gap = np.linalg.norm(found.image_points[common] - cv_points[np.isin(cv_ids, found.ids)], axis=1)
     assert gap.max() < 0.3 * square_px
+
+
+def test_dictionary_by_opencv_enum_value() -> None:
+    # Files written for OpenCV state the dictionary by its enum (Azure Kinect's plane.json: 6).
+    assert CharucoBoard(14, 9, 40, 30, 6).dictionary == "DICT_5X5_250"  # type: ignore[arg-type]
+    with pytest.raises(BoardError, match="predefined ArUco dictionaries"):
+        CharucoBoard(14, 9, 40, 30, 99)  # type: ignore[arg-type]

@@ -3,7 +3,8 @@ numbered exactly as OpenCV's ``cv2.aruco.CharucoBoard``.
 
 ``squares_x`` x ``squares_y`` squares of ``square`` mm, markers ``marker`` mm wide from one of
 OpenCV's predefined dictionaries (by name: ``"DICT_4X4_50"`` ... ``"DICT_7X7_1000"``,
-``"DICT_ARUCO_ORIGINAL"``, ``"DICT_APRILTAG_16h5"`` ...). The board's points are its
+``"DICT_ARUCO_ORIGINAL"``, ``"DICT_APRILTAG_16h5"`` ...; OpenCV's enum value, e.g. 6 for
+``DICT_5X5_250``, is taken too and stored as the name). The board's points are its
 (squares_x - 1) x (squares_y - 1) inner chessboard corners; corner k = r * (squares_x - 1) + c
 is at ((c + 1) * square, (r + 1) * square), in mm from the board's top-left outer corner, X
 across and Y down, OpenCV's ids and object points. Every marker has its id, so any part of
@@ -52,10 +53,18 @@ DICTIONARIES = _dictionary_names()
 """The dictionary names CharucoBoard takes, in OpenCV's enum order."""
 
 
-def dictionary_id(name: str) -> int:
-    """OpenCV's enum value of a predefined dictionary; BoardError naming the choices."""
+def dictionary_id(name: str | int) -> int:
+    """OpenCV's enum value of a predefined dictionary, given by name or by that value (as
+    files written with ``cv2.aruco.getPredefinedDictionary(6)`` state it); BoardError naming
+    the choices."""
     if isinstance(name, str) and name.startswith("DICT_") and hasattr(cv2.aruco, name):
         return int(getattr(cv2.aruco, name))
+    if (
+        isinstance(name, int | np.integer)
+        and not isinstance(name, bool)
+        and any(int(getattr(cv2.aruco, n)) == int(name) for n in DICTIONARIES)
+    ):
+        return int(name)
     raise BoardError(
         f"dictionary must be one of OpenCV's predefined ArUco dictionaries "
         f"({', '.join(DICTIONARIES)}), got {name!r}"

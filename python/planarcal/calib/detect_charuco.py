@@ -245,10 +245,10 @@ def _downscaled(grey: NDArray[np.uint8], max_side: int) -> tuple[NDArray[np.uint
 
 def _detection_dictionary(board: CharucoBoard) -> Any:
     """The board's dictionary cut to its first codes: the board's markers and as many again
-    (ids beyond the board's say it was described too small), as decoding time grows with the
-    dictionary's size."""
+    (up to 32 more: ids beyond the board's say it was described too small), as decoding time
+    grows with the dictionary's size."""
     full = board.opencv_dictionary()
-    n = min(len(full.bytesList), max(2 * board.n_markers, board.n_markers + 50))
+    n = min(len(full.bytesList), board.n_markers + min(board.n_markers, 32))
     if n == len(full.bytesList):
         return full
     return cv2.aruco.Dictionary(
@@ -600,26 +600,33 @@ class _CornerFinder:
             )
             return np.asarray(out, np.float64)
 
+        active = np.arange(len(q))
         for _ in range(iterations):
-            a = q[:, None, :] + v[None, :, :]
-            b = q[:, None, :] - v[None, :, :]
+            qa, w = q[active], weight[active]
+            a = qa[:, None, :] + v[None, :, :]
+            b = qa[:, None, :] - v[None, :, :]
             r = sample(img, a) - sample(img, b)
             jx = sample(gx, a) - sample(gx, b)
             jy = sample(gy, a) - sample(gy, b)
-            sxx = (weight * jx * jx).sum(1)
-            sxy = (weight * jx * jy).sum(1)
-            syy = (weight * jy * jy).sum(1)
-            bx = -(weight * jx * r).sum(1)
-            by = -(weight * jy * r).sum(1)
+            sxx = (w * jx * jx).sum(1)
+            sxy = (w * jx * jy).sum(1)
+            syy = (w * jy * jy).sum(1)
+            bx = -(w * jx * r).sum(1)
+            by = -(w * jy * r).sum(1)
             det = sxx * syy - sxy * sxy
             ok = det > 1e-9 * np.maximum(sxx * syy, 1e-12)
-            dx = np.where(ok, (syy * bx - sxy * by) / np.where(ok, det, 1.0), 0.0)
-            dy = np.where(ok, (sxx * by - sxy * bx) / np.where(ok, det, 1.0), 0.0)
-            step = np.column_stack([dx, dy])
-            norm = np.linalg.norm(step, axis=1, keepdims=True)
-            step *= np.minimum(1.0, 1.0 / np.maximum(norm, 1e-12))  # at most 1 px a step
-            q += step
-            if norm.max() < 0.005:
+            safe = np.where(ok, det, 1.0)
+            step = np.column_stack(
+                [
+                    np.where(ok, (syy * bx - sxy * by) / safe, 0.0),
+                    np.where(ok, (sxx * by - sxy * bx) / safe, 0.0),
+                ]
+            )
+            norm = np.linalg.norm(step, axis=1)
+            step *= np.minimum(1.0, 1.0 / np.maximum(norm, 1e-12))[:, None]  # 1 px a step at most
+            q[active] = qa + step
+            active = active[norm >= 0.005]
+            if len(active) == 0:
                 break
         return np.asarray(q, np.float64)
 
@@ -760,13 +767,9 @@ class _Markers:
     def __init__(self, grey: NDArray[np.uint8], board: CharucoBoard) -> None:
         dictionary = _detection_dictionary(board)
         small, scale = _downscaled(grey, DETECT_MAX_SIDE)
+        # (OpenCV's smallest marker is a fraction of the image's size, 15 px on the copy:
+        # the full image would need 40 px, so it would find no more.)
         quad, ids, rejected, detector = _find_markers(small, dictionary)
-        if scale < 1.0 and np.count_nonzero(ids < board.n_markers) < 4:
-            # Markers too small on the copy: the full image.
-            found = _find_markers(grey, dictionary)
-            if len(found[1]) > len(ids):
-                small, scale = grey, 1.0
-                quad, ids, rejected, detector = found
         self.small, self.scale = small, scale
         self.quad, self.ids = quad, ids
         self.rejected, self.detector = rejected, detector
