@@ -105,3 +105,31 @@ def test_paper_scene_takes_a_board_by_type_or_description() -> None:
         synth.paper_scene(board=3)  # type: ignore[arg-type]
     with pytest.raises(BoardError, match="board must be one of"):
         demo.run(board="hexagons")
+
+
+@pytest.mark.parametrize("kind", ["chessboard", "charuco"])
+def test_random_views_take_any_board(kind: str) -> None:
+    """The accuracy statistics' random views (random_paper_scene, random_webcam_scene) put
+    the board asked for in the paper board's place, aimed at its points' middle."""
+    from planarcal.synth.webcam import random_webcam_scene  # noqa: PLC0415
+
+    scene = synth.random_paper_scene(3, board=kind, max_tilt_deg=20.0)
+    board = synth.paper.PAPER_BOARDS[kind]
+    assert scene.board == board
+    assert scene.points_in_view(margin_px=10.0).all()
+    centre = 0.5 * (scene.points_px.min(axis=0) + scene.points_px.max(axis=0))
+    assert np.hypot(*(centre - [640.0, 360.0])) < 60.0
+    pair = random_webcam_scene(2, board=kind, parts=3)
+    assert pair.calibration.board == board and pair.objects.board is None
+    assert pair.calibration.points_in_view(margin_px=10.0).all()
+    # The same seed gives the same view whatever the board, aimed at its middle.
+    circles = synth.random_paper_scene(3, max_tilt_deg=20.0)
+    for name in ("distance_mm", "tilt_deg", "tilt_axis_deg", "roll_deg"):
+        assert getattr(circles.pose, name) == getattr(scene.pose, name)
+    pts = board.world_points()
+    shift = 0.5 * (pts.min(axis=0) + pts.max(axis=0)) - [130.0, 90.0]
+    np.testing.assert_allclose(
+        np.subtract(scene.pose.look_at_mm, circles.pose.look_at_mm), shift, atol=1e-9
+    )
+    with pytest.raises(BoardError, match="board must be one of"):
+        synth.random_paper_scene(3, board="hexagons")

@@ -119,14 +119,7 @@ def paper_scene(
     "circles", "chessboard", "charuco") or any board, its world origin at the table origin
     (board and table coordinates agree); the objects image is the same whatever the board.
     """
-    if isinstance(board, str):
-        if board not in PAPER_BOARDS:
-            raise BoardError(
-                f"board must be one of {', '.join(PAPER_BOARDS)} or a board, got {board!r}"
-            )
-        board = PAPER_BOARDS[board]
-    elif not is_board(board):
-        raise BoardError(f"board must be a board or a board type, got {type(board).__name__}")
+    board = paper_board(board)
     camera = PAPER_CAMERA
     if not distortion:
         camera = dataclasses.replace(camera, k1=0.0, k2=0.0)
@@ -142,19 +135,35 @@ def paper_scene(
     return PaperScene(calibration, scene)
 
 
+def paper_board(board: Board | str) -> Board:
+    """A board given by type (:data:`PAPER_BOARDS`) or as itself; BoardError otherwise."""
+    if isinstance(board, str):
+        if board not in PAPER_BOARDS:
+            raise BoardError(
+                f"board must be one of {', '.join(PAPER_BOARDS)} or a board, got {board!r}"
+            )
+        return PAPER_BOARDS[board]
+    if not is_board(board):
+        raise BoardError(f"board must be a board or a board type, got {type(board).__name__}")
+    return board
+
+
 def random_paper_scene(
     seed: int,
     *,
     px_per_mm: float = 1.9,
     max_tilt_deg: float = 5.0,
     objects: Sequence[SceneObject] = (),
+    board: Board | str = "circles",
 ) -> RenderedScene:
     """A random view of the paper's setup, for measuring accuracy over many scenes: the
     paper's board and camera (:data:`PAPER_CAMERA`, its lens distortion included) at the
     distance that gives ``px_per_mm`` at the board's centre, tilted up to ``max_tilt_deg``
     about a random axis, rolled up to 3 degrees, aimed within 10 mm of the board's centre,
     with :data:`PAPER_EFFECTS` (blur, noise, uneven lighting) and seeded noise. The same
-    seed always gives the same scene."""
+    seed always gives the same scene. ``board``: another board in the paper board's place
+    (as :func:`paper_scene`'s), the view aimed at its points' middle."""
+    shown = paper_board(board)
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ImageError(f"seed must be a non-negative whole number, got {seed!r}")
     rng = np.random.default_rng(int(seed))
@@ -162,18 +171,23 @@ def random_paper_scene(
     tilt = arguments.real("max_tilt_deg", max_tilt_deg)
     if not 0.0 <= tilt <= 60.0:
         raise ArgumentError(f"max_tilt_deg must be 0 to 60, got {max_tilt_deg!r}")
-    pose = random_board_pose(rng, PAPER_CAMERA.focal_px / scale, tilt)
-    return _paper_render(PAPER_CAMERA, pose, PAPER_BOARD, objects, int(rng.integers(0, 2**31)))
+    pose = random_board_pose(rng, PAPER_CAMERA.focal_px / scale, tilt, shown)
+    return _paper_render(PAPER_CAMERA, pose, shown, objects, int(rng.integers(0, 2**31)))
 
 
 def random_board_pose(
-    rng: np.random.Generator, distance_mm: float, max_tilt_deg: float
+    rng: np.random.Generator,
+    distance_mm: float,
+    max_tilt_deg: float,
+    board: Board = PAPER_BOARD,
 ) -> PlanePose:
-    """A random view of the paper's board from ``distance_mm``: tilted up to ``max_tilt_deg``
-    about a random axis, rolled up to 3 degrees, aimed within 10 mm of the board's centre
-    (the draws in that order, so a seed always gives the same view)."""
-    board = PAPER_BOARD
-    middle = np.array([board.cols - 1, board.rows - 1]) * board.pitch / 2.0
+    """A random view of a board (the paper's unless told) from ``distance_mm``: tilted up to
+    ``max_tilt_deg`` about a random axis, rolled up to 3 degrees, aimed within 10 mm of the
+    middle of its points (the draws in that order, so a seed always gives the same view)."""
+    pts = board.world_points()
+    middle = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    if isinstance(board, CircleGridBoard) and board.layout != "asymmetric":
+        middle = np.array([board.cols - 1, board.rows - 1]) * board.pitch / 2.0
     return PlanePose(
         distance_mm=float(distance_mm),
         tilt_deg=float(rng.uniform(0.0, max_tilt_deg)),

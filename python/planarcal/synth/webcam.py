@@ -15,10 +15,17 @@ import math
 
 import numpy as np
 
+from planarcal.calib.boards import Board
 from planarcal.errors import ArgumentError, ImageError
 from planarcal.synth.camera import CameraModel
 from planarcal.synth.objects import SceneObject
-from planarcal.synth.paper import PAPER_BOARD, PaperScene, _paper_render, random_board_pose
+from planarcal.synth.paper import (
+    PAPER_BOARD,
+    PaperScene,
+    _paper_render,
+    paper_board,
+    random_board_pose,
+)
 
 WEBCAM_FOCAL_PX_PER_WIDTH = 1070.0 / 1280.0
 """A Logitech C525's focal length per pixel of image width (about 69 degrees diagonal)."""
@@ -110,6 +117,7 @@ def random_webcam_scene(
     max_centre_offset_px: float = 40.0,
     parts: int = 12,
     max_tilt_deg: float = 5.0,
+    board: Board | str = "circles",
 ) -> PaperScene:
     """A random view of the paper's board, and of ``parts`` parts in its place, through a
     random webcam lens (:func:`webcam_camera`; the distortion centre ``centre_offset_px``
@@ -117,15 +125,18 @@ def random_webcam_scene(
     objects) like :func:`planarcal.synth.paper_scene`. The board fills the view as in
     :func:`planarcal.synth.random_paper_scene` (1.9 px/mm at 1280 px wide, in proportion at
     other widths), tilted up to ``max_tilt_deg`` about a random axis, rolled up to 3
-    degrees, with the paper scene's effects. The same arguments always give the same pair."""
+    degrees, with the paper scene's effects. The same arguments always give the same pair.
+    ``board``: another board in the paper board's place (as
+    :func:`planarcal.synth.paper_scene`'s); the parts lie over the paper board's area."""
+    shown = paper_board(board)
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ImageError(f"seed must be a non-negative whole number, got {seed!r}")
     rng = np.random.default_rng(int(seed))
     camera = webcam_camera(rng, size, centre_offset_px, max_centre_offset_px)
     scale = 1.9 * camera.width / 1280.0
-    pose = random_board_pose(rng, float(camera.focal_px) / scale, max_tilt_deg)
+    pose = random_board_pose(rng, float(camera.focal_px) / scale, max_tilt_deg, shown)
     things = scattered_parts(rng, parts)
     seeds = rng.integers(0, 2**31, 2)
-    calibration = _paper_render(camera, pose, PAPER_BOARD, (), int(seeds[0]))
+    calibration = _paper_render(camera, pose, shown, (), int(seeds[0]))
     objects = _paper_render(camera, pose, None, things, int(seeds[1]))
     return PaperScene(calibration, objects)
