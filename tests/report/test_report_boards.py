@@ -25,6 +25,7 @@ from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.charuco import CharucoBoard
 from planarcal.calib.chessboard import ChessboardBoard
+from planarcal.calib.detect_chessboard import ChessboardDiagnostics
 from planarcal.calib.detection import BoardDetection, detect_board
 from planarcal.report import drawing
 from planarcal.report.point_names import grid_shape
@@ -428,7 +429,13 @@ def test_a_failure_without_a_record(chess: Seen) -> None:
 @pytest.mark.parametrize(
     "record",
     [
-        types.SimpleNamespace(board=ChessboardBoard(9, 6, 25.0), image_size=SIZE),
+        ChessboardDiagnostics(
+            ChessboardBoard(9, 6, 25.0),
+            SIZE,
+            ("findChessboardCornersSB at 1280 x 720: nothing", "findChessboardCorners: 3 x 2"),
+            (3, 2),
+            np.array([[100, 100], [150, 102], [200, 104], [98, 150], [149, 152], [199, 154.0]]),
+        ),
         types.SimpleNamespace(board=CORNER_BOARD, image_size=SIZE, markers=("ids 0-17",)),
         object(),
         types.SimpleNamespace(
@@ -458,3 +465,6 @@ def test_a_failure_with_another_kind_of_record(record: Any, chess: Seen) -> None
     assert picture.std() > 10
     if hasattr(record, "candidates"):
         assert "1. ?:" in text  # the well-formed candidate, with no method of its own
+    if isinstance(record, ChessboardDiagnostics):
+        assert "Largest grid seen: 3 x 2 points" in text
+        assert "Tried:\n- findChessboardCornersSB at 1280 x 720: nothing" in text

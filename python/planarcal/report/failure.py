@@ -1,10 +1,13 @@
 """When the board is not found: the image with what the search saw (the blobs, each candidate
 grid and why it was refused) and the error, as a figure and as text.
 
-Any board's detector may fail; only the circle grid's records what it saw today
-(planarcal.calib.detect.DetectionDiagnostics). A record of another kind is drawn as far as it
-has the same parts (its ``board``, ``image_size``, ``blobs``, ``candidates``), and none at
-all (None) leaves the image and the message."""
+Any board's detector may fail, and each keeps its own record of what it saw: the circle
+grid's (planarcal.calib.detect.DetectionDiagnostics) its blobs and refused candidate grids,
+the chessboard's (planarcal.calib.detect_chessboard.ChessboardDiagnostics) the finders tried
+and the largest grid of corners seen. A record is drawn as far as it has these parts (its
+``board``, ``image_size``, ``blobs``, ``candidates``, ``grid_points_px`` with
+``grid_shape``, ``attempts``), whatever its class; none at all (None) leaves the image and
+the message."""
 
 from __future__ import annotations
 
@@ -53,6 +56,7 @@ def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> byte
     if diagnostics is not None:
         _draw_seen_blobs(ax, _blobs(diagnostics))
         _draw_candidates(ax, _candidates(diagnostics))
+        _draw_grid_seen(ax, _grid_seen(diagnostics))
         if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
     ax.set_xlim(-0.5, w - 0.5)
@@ -104,6 +108,48 @@ def _candidates(diagnostics: Any) -> list[tuple[str, str, F64, str]]:
             )
         )
     return out
+
+
+def _grid_seen(diagnostics: Any) -> tuple[F64, tuple[int, int] | None] | None:
+    """The largest grid of points the record saw (K, 2) px, with its shape (across, down)
+    when it gives one that fits; None when it saw none."""
+    points = _array(getattr(diagnostics, "grid_points_px", None))
+    if points is None or not points.size or points.size % 2:
+        return None
+    shape: Any = getattr(diagnostics, "grid_shape", None)
+    try:
+        across, down = (int(v) for v in shape)
+    except (TypeError, ValueError):
+        return points.reshape(-1, 2), None
+    fits = across > 0 and down > 0 and across * down * 2 == points.size
+    return points.reshape(-1, 2), (across, down) if fits else None
+
+
+def _draw_grid_seen(ax: Axes, grid: tuple[F64, tuple[int, int] | None] | None) -> None:
+    """The largest grid of points seen: its rows joined, in the legend with its size."""
+    if grid is None:
+        return
+    points, shape = grid
+    rows = [points] if shape is None else list(points.reshape(shape[1], shape[0], 2))
+    label = f"largest grid seen: {len(points)} points"
+    if shape is not None:
+        label = f"largest grid seen: {shape[0]} x {shape[1]}"
+    for k, row in enumerate(rows):
+        ax.plot(
+            row[:, 0],
+            row[:, 1],
+            "o-" if shape is not None else "o",
+            color="tab:red",
+            lw=1.0,
+            ms=3,
+            alpha=0.85,
+            label=label if k == 0 else None,
+        )
+
+
+def _attempts(diagnostics: Any) -> list[str]:
+    """What the record says each finder tried did, as text."""
+    return [str(a) for a in _sequence(getattr(diagnostics, "attempts", None))]
 
 
 def _sequence(value: Any) -> tuple[Any, ...]:
@@ -191,6 +237,19 @@ def detection_failure_text(diagnostics: Any, message: str, width: int = 62, most
     for polarity, _, d in blobs:
         size = f", about {float(np.median(d)):.0f} px across" if d.size else ""
         paragraphs.append(f"Blobs seen: {len(d)}{' ' * bool(polarity)}{polarity}{size}")
+    grid = _grid_seen(diagnostics)
+    if grid is not None:
+        points, shape = grid
+        size = f"{shape[0]} x {shape[1]} points" if shape is not None else f"{len(points)} points"
+        paragraphs.append(f"Largest grid seen: {size}")
+    attempts = _attempts(diagnostics)
+    if attempts:
+        paragraphs += ["", "Tried:"]
+        paragraphs += [
+            textwrap.fill(f"- {a}", width, subsequent_indent="  ") for a in attempts[:most]
+        ]
+        if len(attempts) > most:
+            paragraphs.append(f"... and {len(attempts) - most} more")
     if not hasattr(diagnostics, "candidates"):
         return "\n".join(paragraphs)  # a record that keeps no candidates: nothing to add
     paragraphs.append("")
