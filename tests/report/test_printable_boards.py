@@ -20,7 +20,7 @@ import pytest
 from numpy.typing import NDArray
 
 from planarcal import cli
-from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.board import CircleGridBoard, Layout
 from planarcal.calib.boards import Board
 from planarcal.calib.charuco import CharucoBoard
 from planarcal.calib.chessboard import ChessboardBoard
@@ -492,3 +492,73 @@ def test_board_command_prints_each_type(tmp_path: Path, capsys: pytest.CaptureFi
     assert offered is not None
     code, printed, _ = run(capsys, *shlex.split(offered.group(1)))
     assert code == 0 and "on A4" in printed and "--origin-marker" in printed
+
+
+# --------------------------------------------------------------------------- layout's shortcuts
+
+
+def _random_boards(seed: int, n: int) -> list[Board]:
+    """Boards of every type with varied counts, sizes, markers and layouts."""
+    rng = np.random.default_rng(seed)
+    boards: list[Board] = []
+    while len(boards) < n:
+        kind = ("circles", "chessboard", "charuco")[len(boards) % 3]
+        cols, rows = (int(v) for v in rng.integers(3, 40, size=2))
+        pitch = float(np.round(rng.uniform(1.0, 40.0), 2))
+        if kind == "circles":
+            layout: Layout = "asymmetric" if rng.random() < 0.5 else "symmetric"
+            spacing = pitch * (np.sqrt(2.0) if layout == "asymmetric" else 1.0)
+            diameter = None if rng.random() < 0.3 else float(rng.uniform(0.2, 0.6) * spacing)
+            marked = bool(rng.random() < 0.6)
+            marker = None
+            if marked and rng.random() < 0.5:
+                low = 0.1 * spacing if diameter is None else 1.2 * diameter
+                marker = float(rng.uniform(low, spacing))
+            boards.append(CircleGridBoard(cols, rows, pitch, diameter, marked, marker, layout))
+        elif kind == "chessboard":
+            boards.append(
+                ChessboardBoard(cols, rows, pitch, origin_marker=bool(rng.random() < 0.5))
+            )
+        else:
+            cols, rows = min(cols, 20), min(rows, 20)
+            boards.append(
+                CharucoBoard(cols, rows, pitch, pitch * 0.7, "DICT_6X6_1000", legacy=rows % 3 == 0)
+            )
+    return boards
+
+
+def test_the_layout_measures_a_board_as_it_draws_it(tmp_path: Path) -> None:
+    """The layout places a board by its extent and the box of its marks, found without
+    drawing them (a board of a million dots is tried on many pages): the same numbers as the
+    board's own and as the shapes drawn."""
+    from planarcal.report.printable.layout import extent  # noqa: PLC0415 (the shortcut itself)
+
+    for board in _random_boards(seed=22, n=90):
+        assert extent(board) == board.extent, board
+        page = f"{int(board.extent[0]) + 200}x{int(board.extent[1]) + 200}"
+        layout = write_board(board, tmp_path / "board.svg", page=page)
+        ex, ey = board.extent
+        fx0, fy0, fx1, fy1 = layout.field_box_mm
+        assert abs(fx1 - fx0 - ex) < 1e-9 and abs(fy1 - fy0 - ey) < 1e-9
+        root = ET.parse(layout.path).getroot()
+        if isinstance(board, CircleGridBoard):
+            # Every dot inside the field; the page's content box is what is drawn.
+            dots = root.findall(f".//{SVG}g[@id='dots']/{SVG}circle")
+            cx = np.array([float(c.get("cx", "nan")) for c in dots])
+            cy = np.array([float(c.get("cy", "nan")) for c in dots])
+            r = np.array([float(c.get("r", "nan")) for c in dots])
+            box = ((cx - r).min(), (cy - r).min(), (cx + r).max(), (cy + r).max())
+            assert len(dots) == board.n_points
+        else:
+            rects, _ = svg_shapes(layout.path)
+            box = (rects[:, 0].min(), rects[:, 1].min(), rects[:, 2].max(), rects[:, 3].max())
+            np.testing.assert_allclose(box, layout.field_box_mm, rtol=0, atol=1e-9)
+            ink = board.ink()
+            field = np.array(ink.field) + np.tile(layout.field_offset_mm, 2)
+            np.testing.assert_allclose(field, layout.field_box_mm, rtol=0, atol=1e-9)
+        # (The file's numbers are written to 1e-9 mm.)
+        assert fx0 - 1e-8 <= box[0] and fy0 - 1e-8 <= box[1]
+        assert box[2] <= fx1 + 1e-8 and box[3] <= fy1 + 1e-8
+        content = layout.content_box_mm
+        assert content[0] - 1e-8 <= box[0] and content[1] - 1e-8 <= box[1]
+        assert box[2] <= content[2] + 1e-8 and box[3] <= content[3] + 1e-8

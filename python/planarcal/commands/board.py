@@ -21,6 +21,7 @@ from planarcal.report.printable import (
     PrintLayout,
     board_options,
     exact_mm,
+    fits_page,
     page_refusal,
     page_size,
     pitch_meaning,
@@ -66,16 +67,10 @@ def main(args: argparse.Namespace) -> int:
     refused: str | None = None
     # An unknown page, a bad margin or an output that is neither .svg nor .pdf is the command
     # line's fault (ArgumentError); a board too large for the page is not (BoardError).
+    pages = AUTO_PAGES if auto else (args.page,)
     with command_line(ArgumentError):
-        for page in AUTO_PAGES if auto else (args.page,):
-            refused = page_refusal(
-                board,
-                page,
-                orientation=args.orientation,
-                margin_mm=args.margin,
-                offer=functools.partial(_offer, args, page),
-            )
-            if refused is None:
+        for page in pages:
+            if fits_page(board, page, orientation=args.orientation, margin_mm=args.margin):
                 layout = write_board(
                     board,
                     args.output,
@@ -84,9 +79,17 @@ def main(args: argparse.Namespace) -> int:
                     margin_mm=args.margin,
                 )
                 break
+        else:
+            # The board fits no page tried: the message names a page that would, and the
+            # command for a board that fits the last one.
+            refused = page_refusal(
+                board,
+                pages[-1],
+                orientation=args.orientation,
+                margin_mm=args.margin,
+                offer=functools.partial(_offer, args, pages[-1]),
+            )
     if layout is None:
-        # The board fits no page tried: the message names a page that would, and the
-        # command for a board that fits the last one.
         raise BoardError(refused)
     print(f"wrote {args.output}: {board.describe()}, on {layout.page} {layout.orientation}.")
     if isinstance(board, CircleGridBoard):

@@ -22,31 +22,26 @@ Both formats are written by hand from one list of shapes (shapes.py), so what is
 exactly what is computed here, numbers written with 9 decimals (1e-9 mm):
 
 * pages.py: the paper sizes, by name or ``"WxH"`` in mm.
-* layout.py: where the board's marks, the axis marks, the check bar and the text go; why a
-  board that does not fit does not, and the smaller board that would (``smaller_board``:
-  the most dots, corners or squares at the board's pitch).
+* layout.py: where the board's marks, the axis marks, the check bar and the text go.
+* refusal.py: why a board that does not fit does not, and the smaller board that would
+  (``smaller_board``: the most dots, corners or squares at the board's pitch).
 * options.py: a board as the command line's options spell it (``board_options``).
 * svg.py, pdf.py: the two formats (one SVG user unit is one mm; the PDF scales its content
   to mm with one ``cm`` operator and asks viewers not to scale when printing).
-* write.py: ``write_board`` and the ``PrintLayout`` it returns; ``page_refusal``: whether a
-  board fits a page, and if not, why and what would.
+* write.py: ``write_board`` and the ``PrintLayout`` it returns; ``fits_page``: whether a
+  board fits a page; ``page_refusal``: if not, why and what would.
 
 Files are written atomically (``planarcal.files.atomic_write``): the whole file is rendered
 in memory, then appears complete under its name or not at all, an existing target left as it
 was on any failure.
 """
 
-from planarcal.report.printable.layout import (
-    CHECK_BAR_MM,
-    CHECK_TICK_MM,
-    MARGIN_MM,
-    pitch_meaning,
-    smaller_board,
-)
+from planarcal.report.printable.layout import CHECK_BAR_MM, CHECK_TICK_MM, MARGIN_MM, pitch_meaning
 from planarcal.report.printable.options import LEGACY_WORDS, board_options, exact_mm
 from planarcal.report.printable.pages import PAGE_SIZES, Orientation, page_size
 from planarcal.report.printable.pdf import PT_PER_MM
-from planarcal.report.printable.write import PrintLayout, page_refusal, write_board
+from planarcal.report.printable.refusal import smaller_board
+from planarcal.report.printable.write import PrintLayout, fits_page, page_refusal, write_board
 
 __all__ = [
     "CHECK_BAR_MM",
@@ -59,6 +54,7 @@ __all__ = [
     "PrintLayout",
     "board_options",
     "exact_mm",
+    "fits_page",
     "page_refusal",
     "page_size",
     "pitch_meaning",

@@ -16,16 +16,10 @@ from numpy.typing import ArrayLike, NDArray
 from planarcal.calib.boards import Board
 from planarcal.errors import ArgumentError, BoardError
 from planarcal.files import atomic_write
-from planarcal.report.printable.layout import (
-    CHECK_BAR_MM,
-    MARGIN_MM,
-    AnyBoard,
-    fit,
-    in_words,
-    refusal,
-)
+from planarcal.report.printable.layout import CHECK_BAR_MM, MARGIN_MM, fit
 from planarcal.report.printable.pages import Orientation, num, parse_page
 from planarcal.report.printable.pdf import PT_PER_MM, pdf_bytes
+from planarcal.report.printable.refusal import AnyBoard, in_words, refusal
 from planarcal.report.printable.shapes import Box
 from planarcal.report.printable.svg import svg_bytes
 
@@ -124,7 +118,7 @@ def write_board(
     fmt: Literal["svg", "pdf"] = "svg" if suffix == ".svg" else "pdf"
     label, size, margin = _checked_page(page, orientation, margin_mm)
 
-    drawing = fit(board, label, size, orientation, margin)
+    drawing = fit(board, label, size, orientation, margin, draw=True)
     if drawing is None:
         raise BoardError(refusal(board, label, size, orientation, margin))
 
@@ -174,6 +168,19 @@ def _checked_page(
     if not (pw > 0 and ph > 0 and math.isfinite(pw) and math.isfinite(ph)):
         raise ArgumentError(f"a page must have a positive width and height, got {page!r}")
     return f"{num(pw)}x{num(ph)}", (pw, ph), margin
+
+
+def fits_page(
+    board: Board,
+    page: str | Sequence[float] = "A4",
+    *,
+    orientation: Orientation = "auto",
+    margin_mm: float = MARGIN_MM,
+) -> bool:
+    """Whether ``board`` fits the page as ``write_board`` lays it out (same arguments):
+    ``page_refusal`` without the search for what would fit."""
+    label, size, margin = _checked_page(page, orientation, margin_mm)
+    return fit(board, label, size, orientation, margin) is not None
 
 
 def page_refusal(
