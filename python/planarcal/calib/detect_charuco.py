@@ -64,14 +64,11 @@ clear of the marker's edges)."""
 MAX_HALF_WINDOW = 30
 
 
-SYMMETRY_SIGMA = 1.0
-"""Gaussian smoothing (px) of the image whose centre of symmetry is found."""
-
-
-def _smoothing_sigma(half_window: int) -> float:
-    """The Gaussian smoothing before cornerSubPix for a half window (px): on renders with
-    exact truth it halves the error of sharp images and lowers it on blurred ones."""
-    return 1.6 if half_window >= 6 else (0.8 if half_window >= 3 else 0.0)
+SMOOTHING_SIGMA = 1.0
+"""Gaussian smoothing (px) of the image the corners are measured on (cornerSubPix, the
+centre of symmetry, the ink check): it averages the sensor noise and the pixel grid's steps
+along the edges, and leaves a corner where it is (a point of symmetry). On renders with
+exact truth it halves cornerSubPix's error on sharp images."""
 
 
 ORIENTATION_RULE = (
@@ -463,25 +460,12 @@ class _CornerFinder:
         self.support_obj = [obj.reshape(-1, 2)]
         self.support_img = [marker_img.reshape(-1, 2)]
         self.found: dict[int, F64] = {}
-        self.blurred = cv2.GaussianBlur(grey, (0, 0), 0.7).astype(np.float32)
-        self._smoothed: dict[float, NDArray[np.float32]] = {}
+        self.blurred = np.asarray(
+            cv2.GaussianBlur(grey.astype(np.float32), (0, 0), SMOOTHING_SIGMA), np.float32
+        )
         self._gradients: (
             tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]] | None
         ) = None
-
-    def smoothed(self, half: int) -> NDArray[np.float32]:
-        """The image smoothed for cornerSubPix in a window of `half`: a Gaussian of up to
-        1.6 px averages the sensor noise and the pixel grid's steps along the edges (the
-        corner stays put: it is a point of symmetry), less where the window is small."""
-        return self._smooth(_smoothing_sigma(half))
-
-    def _smooth(self, sigma: float) -> NDArray[np.float32]:
-        if sigma not in self._smoothed:
-            grey = self.grey.astype(np.float32)
-            self._smoothed[sigma] = np.asarray(
-                grey if sigma == 0 else cv2.GaussianBlur(grey, (0, 0), sigma), np.float32
-            )
-        return self._smoothed[sigma]
 
     def corner_obj(self, k: int) -> F64:
         r, c = divmod(k, self.cols)
@@ -550,9 +534,7 @@ class _CornerFinder:
         for half in np.unique(halves[inside]):
             sel = inside & (halves == half)
             pts = predicted[sel].astype(np.float32).reshape(-1, 1, 2)
-            out = cv2.cornerSubPix(
-                self.smoothed(int(half)), pts, (int(half), int(half)), (-1, -1), criteria
-            )
+            out = cv2.cornerSubPix(self.blurred, pts, (int(half), int(half)), (-1, -1), criteria)
             refined[sel] = out.reshape(-1, 2)
         # Then the centre of symmetry, in a disc that holds no marker bit (the ink there is
         # the same turned by 180 degrees): on renders 5 times closer to the truth than
@@ -562,7 +544,15 @@ class _CornerFinder:
         reach = _apply(hstack, centres[:, None, :] + axes[None, :, :])
         radius = 0.9 * np.linalg.norm(reach - mapped[:, 4:5], axis=2).min(axis=1)
         symmetric = self.symmetry_refine(refined, radius)
-        refined[inside] = symmetric[inside]
+        # Where the disc leaves the image the border's replicated pixels are no symmetry.
+        disc_inside = (
+            (symmetric[:, 0] >= radius + 1)
+            & (symmetric[:, 1] >= radius + 1)
+            & (symmetric[:, 0] <= w_img - radius - 2)
+            & (symmetric[:, 1] <= h_img - radius - 2)
+        )
+        use = inside & disc_inside
+        refined[use] = symmetric[use]
         moved = np.linalg.norm(refined - predicted, axis=1)
         corr = self.ink_correlation(ks, refined, hstack, centres, mapped[:, 4])
         # Further than the nearest marker corner it would have found something else.
@@ -575,7 +565,7 @@ class _CornerFinder:
         black squares, the white gaps and the markers' black borders, is the same turned by
         180 degrees about the corner, however blurred."""
         if self._gradients is None:
-            img = self._smooth(SYMMETRY_SIGMA)
+            img = self.blurred
             gx = np.asarray(cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3) / 8.0, np.float32)
             gy = np.asarray(cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3) / 8.0, np.float32)
             self._gradients = (img, gx, gy)
@@ -829,10 +819,13 @@ def _refuse(
     stray, ids = markers.stray_ids, markers.ids
     name = board.dictionary
     if len(stray) >= 2 and len(stray) >= n_group:
+        # Every id of the dictionary, for the board's size (only a few beyond the board's
+        # were decoded).
+        quad, ids, _, _ = _find_markers(markers.small, board.opencv_dictionary())
         raise BoardMismatchError(
             f"markers of {name} ids {_id_ranges(ids)}: the described board "
             f"({board.describe()}) has ids 0-{board.n_markers - 1}; "
-            f"{_board_guess(markers.quad, ids, inset)}"
+            f"{_board_guess(quad, ids, inset)}"
         )
     n_inconsistent = len(markers.ids_on) - n_group
     if n_group >= 2 and n_inconsistent >= max(4, n_group):
