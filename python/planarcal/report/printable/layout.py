@@ -301,9 +301,8 @@ def _board_lines(board: Board) -> list[str]:
     axes = "X along rows, Y down columns"
     if isinstance(board, CharucoBoard):
         lines = [
-            f"{num(board.square)} mm squares, {num(board.marker)} mm markers "
-            f"({board.dictionary}), {field}",
-            f"{board.n_points} corners as OpenCV's CharucoBoard numbers them",
+            f"{num(board.square)} mm squares, {num(board.marker)} mm markers, {board.dictionary}",
+            f"{field}, {board.n_points} corners, ids as OpenCV's CharucoBoard",
             f"origin: top-left outer corner; {axes}",
         ]
         if board.legacy:
