@@ -385,8 +385,27 @@ def _to_table(v: synth.BoardVariant, board_mm: np.ndarray) -> np.ndarray:
     return np.asarray(board_mm @ turn.T + np.array(v.scene.board_origin_mm), np.float64)
 
 
+def test_partial_circle_grids_say_which_dots_remain() -> None:
+    cut = synth.board_variant("fiducial_plate_row_cut")
+    rows = cut.visible.reshape(14, 16)
+    assert rows[:13].all() and not rows[13].any()  # the last row is cut off
+    assert cut.enlarged.sum() == 4 and cut.visible[cut.enlarged].all()
+    glare = synth.board_variant("fiducial_plate_glare")
+    assert np.flatnonzero(~glare.visible).tolist() == [7 * 16 + 8]
+    x, y = np.rint(glare.truth_px[7 * 16 + 8]).astype(int)
+    assert glare.image[y, x] == 255  # the dot is lost in the glare
+    hand = synth.board_variant("origin_marker_hand")
+    hidden = np.flatnonzero(~hand.visible)
+    assert 5 < len(hidden) < 30
+    rows, cols = np.divmod(hidden, 10)
+    assert rows.min() >= 3 and cols.min() >= 5  # the far corner, never the origin
+    for v in (cut, glare, hand):  # every visible dot shows dark ink at its centre
+        px = np.rint(v.truth_px[v.visible]).astype(int)
+        assert (v.image[px[:, 1], px[:, 0]] < 120).all(), v.name
+
+
 def test_the_corpus_covers_the_board_types() -> None:
-    assert set(synth.VARIANTS_BY_KIND) == {"circles", "chessboard", "charuco"}
+    assert set(synth.VARIANTS_BY_KIND) == {"circles", "circles_partial", "chessboard", "charuco"}
     assert synth.VARIANTS_BY_KIND["circles"] is synth.BOARD_VARIANTS
     names = [n for kind in synth.VARIANTS_BY_KIND.values() for n in kind]
     assert len(names) == len(set(names))

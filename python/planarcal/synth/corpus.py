@@ -107,6 +107,11 @@ def _board_shot(shot: _Shot, rng: np.random.Generator) -> tuple[RenderedScene, i
     )
     options = dict(shot.options)
     options.setdefault("supersample", 4)
+    glare_at = options.pop("glare_at", None)
+    if glare_at is not None:  # (point ids, radius px): glare centred on those points
+        ids, radius = cast("tuple[tuple[int, ...], float]", glare_at)
+        on = camera.project(_board_to_table(pts[list(ids)], (0.0, 0.0), shot.board_angle_deg), pose)
+        options["glare"] = tuple((float(x), float(y), float(radius)) for x, y in on)
     scene = render_scene(
         camera,
         pose,
@@ -594,9 +599,74 @@ _CHARUCO_SHOTS: dict[str, tuple[_MakeShot, str]] = {
     ),
 }
 
+
+def _ucl_plate() -> CircleGridBoard:
+    """A plate like the shared UCL one: 16 x 14 dots of 2 mm, 5 mm apart."""
+    return CircleGridBoard(16, 14, 5.0, 2.0)
+
+
+_UCL_FIDUCIALS = {r * 16 + c: 3.5 for r, c in ((3, 3), (3, 12), (10, 3), (10, 11))}
+
+_CIRCLE_PARTIAL_SHOTS: dict[str, tuple[_MakeShot, str]] = {
+    "fiducial_plate_row_cut": (
+        lambda rng: _Shot(
+            _ucl_plate(),
+            CameraModel(1920, 1080, 1300.0, k1=-0.25, k2=0.06),
+            1.15,
+            6.0,
+            options={
+                "enlarged_dots": _UCL_FIDUCIALS,
+                "paper_margin_mm": 4.0,
+                "vignette": 0.4,
+                "blur_sigma_px": 0.8,
+                "noise_sigma": 2.0,
+                "supersample": 8,
+            },
+            aim=(0.0, -0.12),
+        ),
+        "a 16 x 14 plate of 2 mm dots 5 mm apart with 4 enlarged fiducials (like the shared "
+        "UCL plate), strong barrel, its last row cut off by the image's edge",
+    ),
+    "fiducial_plate_glare": (
+        lambda rng: _Shot(
+            _ucl_plate(),
+            CameraModel(1920, 1080, 1300.0, k1=-0.25, k2=0.06),
+            0.9,
+            8.0,
+            options={
+                "enlarged_dots": _UCL_FIDUCIALS,
+                "paper_margin_mm": 4.0,
+                "blur_sigma_px": 0.8,
+                "noise_sigma": 2.0,
+                "supersample": 8,
+                "glare_at": ((7 * 16 + 8,), 14.0),
+            },
+        ),
+        "the fiducial plate whole, a glare spot over one dot inside the grid",
+    ),
+    "origin_marker_hand": (
+        lambda rng: _Shot(
+            CircleGridBoard(10, 8, 20.0, 10.0, origin_marker=True),
+            CameraModel(1280, 720, 1070.0, k1=-0.1),
+            0.85,
+            8.0,
+            options={
+                "objects": hand((170.0, 150.0), -50.0, 80.0, 150.0),
+                "blur_sigma_px": 0.8,
+                "noise_sigma": 2.0,
+            },
+        ),
+        "a 10 x 8 grid with an origin marker, a hand over its far corner",
+    ),
+}
+
 BOARD_VARIANTS: Mapping[str, str] = {name: text for name, (_, text) in _VARIANTS.items()}
 """The corpus' circle-grid variants, by name, and what each shows (see
 :func:`board_variants`)."""
+
+CIRCLE_PARTIAL_VARIANTS: Mapping[str, str] = {n: t for n, (_, t) in _CIRCLE_PARTIAL_SHOTS.items()}
+"""The corpus' partial views of circle grids (part of the board outside the image, under a
+hand or in glare), apart from :data:`BOARD_VARIANTS`, whose every dot is in view."""
 
 CHESSBOARD_VARIANTS: Mapping[str, str] = {n: t for n, (_, t) in _CHESSBOARD_SHOTS.items()}
 """The corpus' chessboard variants, by name, and what each shows."""
@@ -606,12 +676,18 @@ CHARUCO_VARIANTS: Mapping[str, str] = {n: t for n, (_, t) in _CHARUCO_SHOTS.item
 
 VARIANTS_BY_KIND: Mapping[str, Mapping[str, str]] = {
     "circles": BOARD_VARIANTS,
+    "circles_partial": CIRCLE_PARTIAL_VARIANTS,
     "chessboard": CHESSBOARD_VARIANTS,
     "charuco": CHARUCO_VARIANTS,
 }
-"""Each board type's variants (the board's ``kind`` -> name -> description)."""
+"""The variants by kind (a board's ``kind``, and "circles_partial") -> name -> description."""
 
-_ALL_SHOTS: dict[str, tuple[_MakeShot, str]] = {**_VARIANTS, **_CHESSBOARD_SHOTS, **_CHARUCO_SHOTS}
+_ALL_SHOTS: dict[str, tuple[_MakeShot, str]] = {
+    **_VARIANTS,
+    **_CIRCLE_PARTIAL_SHOTS,
+    **_CHESSBOARD_SHOTS,
+    **_CHARUCO_SHOTS,
+}
 
 
 def board_variant(name: str, seed: int = 0) -> BoardVariant:
@@ -651,14 +727,17 @@ def board_variants(
 ) -> list[BoardVariant]:
     """A corpus of boards to test and benchmark board detection on: every variant of
     ``kind`` (:data:`VARIANTS_BY_KIND`: "circles", the default, for :data:`BOARD_VARIANTS`,
-    "chessboard", "charuco", or "all") or those in ``names`` (of any kind, in that order),
-    each rendered with its exact truth. The same seed always gives the same corpus.
+    "circles_partial", "chessboard", "charuco", or "all") or those in ``names`` (of any
+    kind, in that order), each rendered with its exact truth. The same seed always gives
+    the same corpus.
 
     Circle grids sweep the dot diameter / pitch ratio (0.15 to 0.85), both layouts, origin
     markers and fiducials, printed marks, resolutions from 320 x 240 to 3840 x 2160, webcam
     JPEG, lens distortion, tilt, lighting, light-on-dark boards and textured tables; every
     dot lies wholly inside its image (about 10 s on two cores for all of them, 4 s of that
-    the 4K image). Chessboards and ChArUco boards sweep proportions (5 x 8 to 16 x 11 inner
+    the 4K image); "circles_partial" are circle grids in part (a fiducial plate like the
+    shared UCL one with a row cut off or a dot in glare, a hand over a marker board).
+    Chessboards and ChArUco boards sweep proportions (5 x 8 to 16 x 11 inner
     corners, 5 x 7 to 14 x 10 squares), square sizes (10 to 35 mm), dictionaries (4x4 to
     6x6, AprilTag, both ChArUco layouts), 640 x 480 to 3840 x 2160, lenses from none to
     strong barrel, tilts to 45 degrees, uneven light, textures, printed marks and parts on
