@@ -19,14 +19,24 @@ for):
    so is one that strays far from where the dots around it put it (a mark over it), which
    takes their prediction. A grid with more such dots than a board may miss, or whose dots
    continue past an edge (a larger board), is not the board's and is refused.
+4. Partial views, where no whole board is found (planarcal.calib.partial_view): a lattice
+   that fits inside the board in one way only (up to the turns that map the board's print
+   onto itself) is read as the part of the board it is: its enlarged dots (the board's
+   ``fiducials``, its origin marker) on the board's, its regular dots on regular ones, or a
+   lattice as large as the board with dots lost to glare. The board's other dots in view
+   join it (across an object, the rest of the lattice), and the detection has the ids of the
+   dots found (``ids``; dots that cannot be measured or checked against their neighbours
+   are left out, not filled in). A part that fits the board in several ways (a plain grid
+   cut off) is refused, saying that the view is partial and ambiguous and what would fix it.
 
 The board's reading. The world frame (X along a row, Y down a column, as printed and seen
 from the front) maps onto the image without a mirror. An origin marker (the board's, or
 any corner dot clearly larger than its neighbours: recognised without being declared) is
-dot 0. A grid whose pattern has one unmirrored reading (an asymmetric grid with an odd number
-of rows) fixes it by itself. Otherwise the orientation is ambiguous, and dot 0 is the corner
-nearest the image's top-left (pixel (0, 0)); the detection says so (``orientation``,
-``orientation_rule``). A
+dot 0; a board's fiducials must be where it has them, and fix the reading where they break
+the grid's symmetry. A grid whose pattern has one unmirrored reading (an asymmetric grid
+with an odd number of rows) fixes it by itself. Otherwise the orientation is ambiguous,
+and dot 0 is the corner nearest the image's top-left (pixel (0, 0)); the detection says so
+(``orientation``, ``orientation_rule``). A
 non-square board that can only be read turned by 90 degrees (its rows running down the
 image) is refused with the command line that reads it as given (``--cols`` and ``--rows``
 swapped), unless ``turned=True`` or a marker settles it.
@@ -155,9 +165,11 @@ def detect_circle_grid(
     """Find the circle grid `board` in `image` (an array, grey or BGR, any real dtype, or a
     path); planarcal.calib.detection.detect_board's detector for circle grids.
 
-    Returns the centre of every dot in the board's order; raises BoardNotFoundError, saying
-    what was seen and what to try, when the image does not show the whole board (with
-    ``.diagnostics``: the blobs and the candidate grids refused). ``turned=True`` accepts a
+    Returns the centre of every dot in the board's order, or of the dots in view (``ids``)
+    of a partial view that identifies itself (see the module's docstring); raises
+    BoardNotFoundError, saying what was seen and what to try, when the image shows neither
+    (with ``.diagnostics``: the blobs, the candidate grids refused and the ambiguous partial
+    views). ``turned=True`` accepts a
     non-square board without an origin marker that lies turned by 90 degrees in the image
     (otherwise refused as BoardTurnedError: usually ``--cols`` and ``--rows`` swapped).
     BoardMismatchError when the board found contradicts the description: its dots, measured
@@ -175,8 +187,7 @@ def detect_circle_grid(
     refused: list[RefusedCandidate] = []
     seen: list[SeenBlobs] = []
     turned_error: BoardTurnedError | None = None
-    # Lattices that may be part of the board, tried once no whole board is found.
-    partial_tries: list[tuple[Literal["dark", "light"], Blobs, list[Lattice], list[Lattice]]] = []
+    views: list[PartialView] = []
     for pol in polarities:
         # Memory: an 8-bit image is searched as it is (the light dots' search thresholds it
         # the other way), a float one through one 8-bit copy per polarity; the float copy
@@ -185,6 +196,7 @@ def detect_circle_grid(
         blobs = find_blobs(u8, MIN_DOT_PX, _largest_dot_px(u8.shape, board), dark=dark)
         ink = _InkDark(grey, pol)
         grids: list[tuple[int, int, int]] = []
+        # Lattices that may be part of the board, read as such once no whole board is found.
         partial: list[Lattice] = []
         every: list[Lattice] = []
         candidates = _candidates(u8, blobs, board, pol, refused, grids, partial, every)
@@ -198,13 +210,9 @@ def detect_circle_grid(
                 refused.append(RefusedCandidate(method, pol, points, str(why)))
         largest = max(grids, key=lambda g: g[2], default=None)
         seen.append(SeenBlobs(pol, blobs.centres, blobs.diameters, largest))
-        partial_tries.append((pol, blobs, partial, every))
-        del u8, ink, candidates  # free this polarity's images before the next one's
-    # No whole board: part of it, where the part in view says which part it is.
-    views: list[PartialView] = []
-    for pol, blobs, lattices, every in partial_tries:
-        ink = _InkDark(grey, pol)
-        for lattice in lattices[:MAX_PARTIAL_LATTICES]:
+        del u8, candidates  # free this polarity's search image before the next one's
+        # No whole board: part of it, where the part in view says which part it is.
+        for lattice in partial[:MAX_PARTIAL_LATTICES]:
             points = blobs.centres[lattice.blob]
             others = [other for other in every if other is not lattice]
             try:
