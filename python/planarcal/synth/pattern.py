@@ -82,10 +82,7 @@ class _Pattern:
         ]
 
     def _atoms(self, x: F64, y: F64) -> tuple[I64, I64]:
-        return (
-            np.searchsorted(self.xs, x, side="right").astype(np.intp),
-            np.searchsorted(self.ys, y, side="right").astype(np.intp),
-        )
+        return np.searchsorted(self.xs, x, side="right"), np.searchsorted(self.ys, y, side="right")
 
     def classify(self, x: F64, y: F64, radius: F64) -> tuple[NDArray[np.int8], NDArray[np.bool_]]:
         """The material at each board point (table, paper or ink; circles included) and
@@ -133,18 +130,20 @@ class _Pattern:
         if mixed.size == 0:
             return out
         i_lo, i_hi, j_lo, j_hi = i_lo[mixed], i_hi[mixed], j_lo[mixed], j_hi[mixed]
-        quadrant = _Quadrants(x[mixed], y[mixed], tuple(v[mixed] for v in cell))  # type: ignore[arg-type]
+        xm, ym = x[mixed], y[mixed]
+        cm = tuple(v[mixed] for v in cell)
         for di in range(int((i_hi - i_lo).max()) + 1):
             for dj in range(int((j_hi - j_lo).max()) + 1):
                 sel = np.flatnonzero((i_lo + di <= i_hi) & (j_lo + dj <= j_hi))
                 i, j = i_lo[sel] + di, j_lo[sel] + dj
+                quadrant = _Quadrants(xm[sel], ym[sel], tuple(v[sel] for v in cm))  # type: ignore[arg-type]
                 x0, x1 = self.x_edges[i], self.x_edges[i + 1]
                 y0, y1 = self.y_edges[j], self.y_edges[j + 1]
                 share = (
-                    quadrant.area(sel, x1, y1)
-                    - quadrant.area(sel, x0, y1)
-                    - quadrant.area(sel, x1, y0)
-                    + quadrant.area(sel, x0, y0)
+                    quadrant.area(x1, y1)
+                    - quadrant.area(x0, y1)
+                    - quadrant.area(x1, y0)
+                    + quadrant.area(x0, y0)
                 )
                 np.add.at(out, (mixed[sel], self.grid[j, i]), share)
         return out
@@ -178,17 +177,16 @@ class _Quadrants:
         self.hx = 0.5 * (np.abs(ax) + np.abs(bx))
         self.hy = 0.5 * (np.abs(ay) + np.abs(by))
 
-    def area(self, sel: I64, a: F64, b: F64) -> F64:
-        """Fraction of cells ``sel`` with x < a and y < b (a, b may be infinite)."""
-        x, y, hx, hy = self.x[sel], self.y[sel], self.hx[sel], self.hy[sel]
-        cell = tuple(v[sel] for v in self.cell)
+    def area(self, a: F64, b: F64) -> F64:
+        """Fraction of each cell with x < a and y < b (a, b may be infinite)."""
+        hx, hy, cell = self.hx, self.hy, self.cell
         with np.errstate(invalid="ignore"):
-            u, v = a - x, b - y  # the corner relative to the cell's centre
-        out = np.zeros(sel.size)
+            u, v = a - self.x, b - self.y  # the corner relative to the cell's centre
+        out = np.zeros(u.size)
         left, below = u >= hx, v >= hy
         inside_x, inside_y = (u > -hx) & ~left, (v > -hy) & ~below
         out[left & below] = 1.0
-        zeros, ones = np.zeros(sel.size), np.ones(sel.size)
+        zeros, ones = np.zeros(u.size), np.ones(u.size)
         # The corner beyond the cell along x (or y): a straight boundary across it.
         k = np.flatnonzero(left & inside_y)
         if k.size:
