@@ -171,6 +171,14 @@ def test_swapped_sides_are_named() -> None:
         detect_charuco(image, CharucoBoard(5, 7, 30, 22, "DICT_5X5_100"))
 
 
+def test_wrong_marker_size_is_measured_and_named() -> None:
+    image = _render(CharucoBoard(7, 5, 30, 22, "DICT_5X5_100"), fill=0.6, tilt_x=10)
+    with pytest.raises(BoardMismatchError, match=r"markers 2[12]\.\d mm wide .* not the 15 mm"):
+        detect_charuco(image, CharucoBoard(7, 5, 30, 15, "DICT_5X5_100"))
+    # The same board described in other units (40 mm squares, the same proportions) reads.
+    assert len(detect_charuco(image, CharucoBoard(7, 5, 40, 29.33, "DICT_5X5_100")).ids) == 24
+
+
 def test_no_board_says_what_was_seen_in_bounded_time() -> None:
     noise = np.random.default_rng(3).integers(0, 256, (SIZE[1], SIZE[0])).astype(np.uint8)
     start = time.perf_counter()

@@ -187,7 +187,9 @@ class _MarkerPairs:
             _apply(self.hs[j], 1.0 - delta[:, None, :])[:, 0] - self.centres[i], axis=1
         )
         ok = (e_ij < self.tol) & (e_ji < self.tol)
-        return _Agreement(self.n, i[ok], j[ok], int(np.count_nonzero(~ok)))
+        agreement = _Agreement(self.n, i[ok], j[ok], int(np.count_nonzero(~ok)))
+        agreement.error = float(np.mean((e_ij + e_ji) / self.tol)) if len(i) else 0.0
+        return agreement
 
 
 class _Agreement:
@@ -195,6 +197,9 @@ class _Agreement:
 
     def __init__(self, n: int, agree_i: I64, agree_j: I64, disagree: int) -> None:
         self.n, self.agree_i, self.agree_j, self.disagree = n, agree_i, agree_j, disagree
+        self.error = 0.0
+        """The pairs' mean distance between where each puts the other and where it is seen,
+        in tolerances."""
 
     @property
     def n_agree(self) -> int:
@@ -460,6 +465,7 @@ class _CornerFinder:
         self.support_obj = [obj.reshape(-1, 2)]
         self.support_img = [marker_img.reshape(-1, 2)]
         self.found: dict[int, F64] = {}
+        self.unrefined: set[int] = set()
         self.blurred = np.asarray(
             cv2.GaussianBlur(grey.astype(np.float32), (0, 0), SMOOTHING_SIGMA), np.float32
         )
@@ -646,15 +652,20 @@ class _CornerFinder:
         corr[darkness.std(axis=1) < 4.0] = -1.0
         return np.asarray(corr, np.float64)
 
-    def accept(self, ks: list[int], points: F64) -> None:
+    def accept(self, ks: list[int], points: F64, *, refined: bool = True) -> None:
+        """Keep corners; refined ones also support the local fits of their neighbours."""
         for k, p in zip(ks, points, strict=True):
             self.found[k] = p
+        if not refined:
+            self.unrefined.update(ks)
+            return
         self.support_obj.append(np.array([self.corner_obj(k) for k in ks]).reshape(-1, 2))
         self.support_img.append(points.reshape(-1, 2))
 
     def run(self, deadline: float) -> dict[int, F64]:
-        """Every corner that can be found; returns them and the ids of those that two
-        markers vouch for (OpenCV's own set)."""
+        """Every corner that can be found, by id (``unrefined`` then holds those that keep
+        their markers' prediction: two markers vouch for them, but the image showed no
+        corner there to refine, as on a glare or a fold)."""
         n = self.cols * self.rows
         tried: set[int] = set()
         by_markers: dict[int, int] = {}
@@ -677,10 +688,8 @@ class _CornerFinder:
                 for i, k in enumerate(ks)
                 if k in two and corr[i] < 0.0 and self._inside(predicted[i])
             ]
-            points = refined.copy()
-            points[fallback] = predicted[fallback]
-            keep = sorted(ok + fallback)
-            self.accept([ks[i] for i in keep], points[keep])
+            self.accept([ks[i] for i in ok], refined[ok])
+            self.accept([ks[i] for i in fallback], predicted[fallback], refined=False)
         # Follow the chessboard from the corners found.
         for _ in range(self.cols + self.rows):
             if time.thread_time() > deadline:
@@ -836,6 +845,14 @@ def _refuse(
         )
     if n_group >= 2:
         return
+    ratio = _fit_marker_ratio(board, markers)
+    if ratio is not None:
+        raise BoardMismatchError(
+            f"the markers of {name} seen (ids {_id_ranges(markers.ids_on)}) fit this board "
+            f"with markers {ratio * board.square:.3g} mm wide for its {board.square:g} mm "
+            f"squares ({ratio:.2f} of the square), not the {board.marker:g} mm described: "
+            "measure the printed marker (its black border, outside to outside) and the square"
+        )
     found = _search_dictionaries(grey, board, start + SEARCH_DEADLINE_S)
     if found is not None:
         family, quad_x, ids_x = found
@@ -856,6 +873,25 @@ def _refuse(
         "Try a sharper, evenly lit view in which the markers are at least 20 px wide, and "
         "check the board's dictionary"
     )
+
+
+def _fit_marker_ratio(board: CharucoBoard, markers: _Markers) -> float | None:
+    """The marker-to-square ratio under which at least three of the markers seen agree (the
+    one under which most do), when the stated one lets no two agree; None when none does."""
+    if len(markers.ids_on) < 3:
+        return None
+    best: tuple[int, float, float] | None = None
+    layouts = (False, True) if board.layouts_differ else (bool(board.legacy),)
+    cells = {legacy: marker_cells(board.squares_x, board.squares_y, legacy) for legacy in layouts}
+    for ratio in np.arange(0.30, 0.96, 0.01):
+        pairs = _MarkerPairs(markers.quad_on, 0.5 * (1.0 - ratio))
+        for legacy in layouts:
+            agreement = pairs.agreement(cells[legacy][markers.ids_on])
+            n = int(agreement.largest_group().sum())
+            # The most markers agreeing, then the closest agreement.
+            if n >= 3 and (best is None or (n, -agreement.error) > (best[0], -best[2])):
+                best = (n, float(ratio), agreement.error)
+    return None if best is None else best[1]
 
 
 def _recover_markers(
@@ -953,7 +989,7 @@ def detect_charuco(image: Any, board: CharucoBoard, **options: Any) -> BoardDete
         residual_rms_px=_homography_rms(board.world_points()[corner_ids], points),
         ids=corner_ids,
         polarity="dark",
-        refined=np.ones(len(corner_ids), bool),
+        refined=~np.isin(corner_ids, list(finder.unrefined)),
         orientation="marker",
         orientation_rule=ORIENTATION_RULE,
         warnings=tuple(warnings),
