@@ -145,6 +145,18 @@ def test_even_rows_layout_is_read_from_the_markers(printed_legacy: bool) -> None
         detect_charuco(image, wrong)
 
 
+def test_markers_of_one_row_cannot_tell_the_layouts_apart() -> None:
+    board = CharucoBoard(8, 6, 30, 22, "DICT_5X5_100")
+    image, truth = render_charuco(board, view_homography(board, SIZE, fill=0.7), SIZE, blur=0.7)
+    square_px = truth[1, 0] - truth[0, 0]
+    image[int(truth[0, 1] + 0.3 * square_px) :, :] = 110  # the first row of squares only
+    with pytest.raises(BoardNotFoundError, match=r"fit both printed layouts.*legacy=True"):
+        detect_charuco(image, board)
+    # Told the layout, the same view is read as far as it goes (its corners are on a line).
+    with pytest.raises(BoardNotFoundError, match="all on one line"):
+        detect_charuco(image, CharucoBoard(8, 6, 30, 22, "DICT_5X5_100", legacy=False))
+
+
 def _render(board: CharucoBoard, **view: float) -> NDArray[np.uint8]:
     hom = view_homography(board, SIZE, **view)  # type: ignore[arg-type]
     image, _ = render_charuco(board, hom, SIZE, blur=0.7, noise=2.0)
