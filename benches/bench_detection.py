@@ -1,6 +1,7 @@
 """Board detection (``planarcal.detect_board``) measured against OpenCV's findCirclesGrid: how
 often each finds the board, how accurate its dot centres are, and how long the worst images
-take (issue 12, "Tests and measurements"). Five sections:
+take (issue 12, "Tests and measurements"), and chessboards the same way (issue 22). Six
+sections:
 
 1. **Centre accuracy** on rendered images with exact truth (``planarcal.synth``): the paper's
    14 x 10 board, 1280 x 720, tilted by 0, 15 and 30 degrees, blurred (0.7 and 1.5 px), with
@@ -39,12 +40,19 @@ take (issue 12, "Tests and measurements"). Five sections:
    inflates wall-clock times), its outcome, PASS/FAIL against the issue's targets: any 720p
    image within 2 s, any 4K image within 8 s, a typical 720p board photo within 0.2 s.
 
+6. **Chessboards** (benches/chessboard_section.py): planarcal.calib.detect_chessboard against
+   findChessboardCornersSB (exhaustive, accuracy) and findChessboardCorners + cornerSubPix:
+   corner accuracy on renders with exact truth (blur, noise, lens, tilts to 60 degrees), the
+   real photographs' find rate and neighbour residuals, and time on 720p and 20-megapixel
+   images against the issue's limits.
+
 Deterministic (fixed seeds). Run from the repository root::
 
     python benches/bench_detection.py             # everything (3 minutes on 2 cores)
     python benches/bench_detection.py --markdown  # as Markdown, for the README
     python benches/bench_detection.py --quick     # one seed, fewer scenes, one timing run
     python benches/bench_detection.py --only variants timing  # some sections
+    python benches/bench_detection.py --only chessboard      # the chessboards' figures
 
 PASS/FAIL lines report the targets; the exit status is 0 either way.
 """
@@ -72,6 +80,7 @@ from planarcal.errors import BoardError, BoardNotFoundError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from chessboard_section import chessboard_section
 from reporting import cpu_model, load_average, table_lines
 
 F64 = NDArray[np.float64]
@@ -80,7 +89,7 @@ U8 = NDArray[np.uint8]
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 BOOFCV = ("boofcv-circle-regular", "image0000*.jpg", CircleGridBoard(10, 8, 25.0, None))
 UCL = ("ucl-dotty-metal", "*_left_image.png", CircleGridBoard(16, 14, 5.0, None))
-SECTIONS = ("accuracy", "variants", "real", "timing")
+SECTIONS = ("accuracy", "variants", "real", "timing", "chessboard")
 # The issue's targets (s): any 720p image, any 4K image, a typical 720p board photo.
 LIMIT_720P, LIMIT_4K, LIMIT_TYPICAL = 2.0, 8.0, 0.2
 
@@ -1025,6 +1034,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         real_section(out)
     if "timing" in args.only:
         timing_section(out, 1 if args.quick else 3)
+    if "chessboard" in args.only:
+        chessboard_section(out, REAL, args.quick, ("accuracy", "real", "timing"))
     elapsed = time.perf_counter() - start
     out.note(f"Total run time {elapsed:.0f} s; load average {load_average()}.")
     return 0

@@ -174,8 +174,8 @@ def _levenberg_marquardt(
             # The window's weights move with the estimate.
             w[b] = _weights(px[b], py[b], theta[b, :2], rad[b], inside[b])
             cost[b], hess[b], grad[b] = _normal_equations(t_resid[better], t_jac[better], w[b])
-        # Done: an accepted step below 1e-4 px, or damping that no step gets past.
-        done = (better & (np.abs(step[:, :2]).max(axis=1) < 1e-4)) | (lam[a] > 1e6)
+        # Done: an accepted step below 5e-4 px, or damping that no step gets past.
+        done = (better & (np.abs(step[:, :2]).max(axis=1) < 5e-4)) | (lam[a] > 1e6)
         active = a[~done]
         if active.size == 0:
             break

@@ -1,12 +1,16 @@
 """Finding a chessboard in an image: its inner corners, sub-pixel, with their ids.
 
-1. **Finding** (a downscaled copy, then a larger one, within a time budget): OpenCV's
-   finders, which are thorough and quick at that scale: ``findChessboardCorners`` (adaptive
-   threshold, normalised), then ``findChessboardCornersSB`` (exhaustive; at the larger scale
-   also with ``CALIB_CB_ACCURACY``, the flags the issue compares against). A board with an
-   origin marker is first looked for with ``CALIB_CB_MARKER | CALIB_CB_LARGER`` and a 3 x 3
-   pattern, which finds any part of it that holds the marker, and then as any grid of
-   corners (``CALIB_CB_LARGER``) whose marker planarcal reads itself.
+1. **Finding**, with OpenCV's finders on the image downscaled to 800 px (then 1280, 2048,
+   3200 and the image itself, while the time budget allows: each finder's time per pixel is
+   learnt on the smaller copies, so noise and clutter, which slow them, end the search
+   sooner): a board with an origin marker first by OpenCV's marker reading
+   (``findChessboardCornersSB`` with ``CALIB_CB_MARKER | CALIB_CB_LARGER``, a 3 x 3 pattern:
+   any part of the board that holds the marker); then ``findChessboardCorners`` (adaptive
+   threshold, normalised; its quick check first), ``findChessboardCornersSB`` with
+   ``CALIB_CB_LARGER`` (the largest grid of corners in view: the whole board, a part with a
+   marker, or what the message names), and on the larger copies ``findChessboardCornersSB``
+   exhaustive (without ``CALIB_CB_ACCURACY``, which only upsamples for OpenCV's own
+   sub-pixel step, at twice the time) and ``findChessboardCorners`` in full.
 2. **Refinement** at full resolution (planarcal.calib.corner_refine): a model of each corner
    (two blurred edges crossing) fitted to the grey levels; its figures against OpenCV's are in
    benches/bench_detection.py.
@@ -65,15 +69,18 @@ I64 = NDArray[np.int64]
 FIND_LONG_SIDES = (800, 1280, 2048, 3200)
 """The finders' images: the image downscaled to these many px along its longer side (each
 one that is smaller than the image, then the image itself if it is not much larger)."""
-TIME_BUDGET_S = 1.4
+TIME_BUDGET_S = 1.2
 """Seconds the finders may take for an image of up to a megapixel..."""
 TIME_BUDGET_PER_MEGAPIXEL_S = 0.38
 """... plus this per further megapixel (a 20-megapixel photograph: about 7 s in all). A
 finder is started only where its expected time (below) still fits."""
-CLASSIC_S_PER_PIXEL = 1.5e-6
-SB_S_PER_PIXEL = 0.5e-6
-"""findChessboardCorners' and findChessboardCornersSB's time per pixel on a board they do
-not find (the worst case, on two cores); where they find one they take a fraction of it."""
+CLASSIC_S_PER_PIXEL = 1.0e-6
+SB_S_PER_PIXEL = 0.4e-6
+SB_EXHAUSTIVE_S_PER_PIXEL = 0.8e-6
+"""findChessboardCorners', findChessboardCornersSB's and its exhaustive search's least time
+per pixel where they find no board (on two cores); each finder's rate on the image at hand,
+once measured on a smaller copy, replaces it where it is higher (noise and clutter slow them
+several times)."""
 
 AMBIGUOUS_CHESS_RULE = (
     "no origin marker, and the board looks the same turned: corner 0 is the board corner "
@@ -213,6 +220,12 @@ class _Finder:
         self.budget = TIME_BUDGET_S + TIME_BUDGET_PER_MEGAPIXEL_S * max(0.0, megapixels - 1.0)
         self.attempts: list[str] = []
         self.largest: _Grid | None = None
+        self.probed = False
+        self.rates = {
+            "classic": CLASSIC_S_PER_PIXEL,
+            "sb": SB_S_PER_PIXEL,
+            "sb-exhaustive": SB_EXHAUSTIVE_S_PER_PIXEL,
+        }
         self._scaled: dict[int, tuple[U8, float]] = {}
 
     def _image(self, long_side: int) -> tuple[U8, float]:
@@ -230,10 +243,14 @@ class _Finder:
                 self._scaled[key] = (small, size[0] / w)
         return self._scaled[key]
 
-    def _fits(self, side: int, seconds_per_pixel: float) -> bool:
+    def _fits(self, side: int, finder: str) -> bool:
         img, _ = self._image(side)
-        expected = seconds_per_pixel * img.size
+        expected = self.rates[finder] * img.size
         return bool(time.process_time() - self.start + expected <= self.budget)
+
+    def _timed(self, finder: str, pixels: int, seconds: float) -> None:
+        """Learn the finder's time per pixel on this image (clutter and noise slow it)."""
+        self.rates[finder] = max(self.rates[finder], seconds / max(pixels, 1))
 
     def _sides(self) -> list[int]:
         long_side = max(self.u8.shape)
@@ -246,44 +263,65 @@ class _Finder:
         board = self.board
         whole = (board.cols, board.rows)
         n = cv2.CALIB_CB_NORMALIZE_IMAGE
-        long_side = max(self.u8.shape)
-        sides = self._sides()
+        first, *rest = self._sides()
+        marker = n | cv2.CALIB_CB_MARKER | cv2.CALIB_CB_LARGER
+        # The smallest image first: OpenCV's marker reading (a marker board), the classic
+        # finder's quick check, then the largest grid of corners in view, whatever its size
+        # (the whole board, a part with a marker, or what the message names), then the
+        # classic finder in full.
         if board.origin_marker:
-            # OpenCV's own marker reading first: quick, and it finds a part of the board.
-            for side in sides:
-                flags = n | cv2.CALIB_CB_MARKER | cv2.CALIB_CB_LARGER
-                yield from self._sb(side, (3, 3), flags, "opencv-sb-marker")
-        for side in sides:
-            yield from self._classic(side, whole)
-            acc = cv2.CALIB_CB_ACCURACY if side == long_side else 0
-            yield from self._sb(side, whole, n | cv2.CALIB_CB_EXHAUSTIVE | acc, "opencv-sb")
-        if board.origin_marker:
-            # Any part of a grid, whose marker planarcal reads itself.
-            for side in sides:
+            yield from self._sb(first, (3, 3), marker, "opencv-sb-marker")
+        yield from self._classic(first, whole, cv2.CALIB_CB_FAST_CHECK)
+        yield from self._sb(first, (3, 3), n | cv2.CALIB_CB_LARGER, "opencv-sb-larger")
+        self.probed = True
+        yield from self._classic(first, whole, 0)
+        # Then larger images, while time allows.
+        for side in rest:
+            if board.origin_marker:
+                yield from self._sb(side, (3, 3), marker, "opencv-sb-marker")
+            # Exhaustive, without CALIB_CB_ACCURACY: that flag upsamples the image for
+            # OpenCV's own sub-pixel corners (planarcal refines its own) at twice the time.
+            exhaustive = n | cv2.CALIB_CB_EXHAUSTIVE
+            yield from self._sb(side, whole, exhaustive, "opencv-sb", rate="sb-exhaustive")
+            yield from self._classic(side, whole, 0)
+            if board.origin_marker:
                 yield from self._sb(side, (3, 3), n | cv2.CALIB_CB_LARGER, "opencv-sb-larger")
 
-    def _classic(self, side: int, size: tuple[int, int]) -> Iterator[_Grid]:
-        if not self._fits(side, CLASSIC_S_PER_PIXEL):
+    def _classic(self, side: int, size: tuple[int, int], extra: int) -> Iterator[_Grid]:
+        if not self._fits(side, "classic") and not extra:
             return
         img, scale = self._image(side)
-        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | extra
+        start = time.process_time()
         found, corners = cv2.findChessboardCorners(img, size, flags=flags)
-        label = f"findChessboardCorners at {img.shape[1]} x {img.shape[0]}"
+        if not extra:
+            self._timed("classic", img.size, time.process_time() - start)
+        quick = " (quick check)" if extra else ""
+        label = f"findChessboardCorners{quick} at {img.shape[1]} x {img.shape[0]}"
         self.attempts.append(f"{label}: {'found' if found else 'not found'}")
         if found and corners is not None:
             pts = corners.reshape(size[1], size[0], 2).astype(np.float64)
             yield _Grid(_to_full(pts, scale), "opencv-classic")
 
     def _sb(
-        self, side: int, size: tuple[int, int], flags: int, method: str, *, always: bool = False
+        self,
+        side: int,
+        size: tuple[int, int],
+        flags: int,
+        method: str,
+        *,
+        always: bool = False,
+        rate: str = "sb",
     ) -> Iterator[_Grid]:
-        if not always and not self._fits(side, SB_S_PER_PIXEL):
+        if not always and not self._fits(side, rate):
             return
         img, scale = self._image(side)
+        start = time.process_time()
         try:
             found, corners, meta = cv2.findChessboardCornersSBWithMeta(img, size, flags)
         except cv2.error:
             found, corners, meta = False, None, None
+        self._timed(rate, img.size, time.process_time() - start)
         label = f"findChessboardCornersSB ({method}) at {img.shape[1]} x {img.shape[0]}"
         self.attempts.append(f"{label}: {'found' if found else 'not found'}")
         if not found or corners is None:
@@ -299,7 +337,7 @@ class _Finder:
     def probe(self) -> _Grid | None:
         """The largest grid of chessboard corners in view, whatever its size (for the
         message when the board is not found)."""
-        if self.largest is None:
+        if self.largest is None and not self.probed:
             side = self._sides()[0]
             for grid in self._sb(side, (3, 3), cv2.CALIB_CB_LARGER, "probe", always=True):
                 self.largest = grid
@@ -676,7 +714,11 @@ def _x_corners(
     good &= (predicted[:, 1] > margin) & (predicted[:, 1] < h - 1 - margin)
     found = np.zeros(len(predicted), dtype=bool)
     points = predicted.copy()
+    # The quick look first (the four squares about the prediction), the fit only where it
+    # sees an X-corner: a fit where there is none runs to its last step.
     idx = np.flatnonzero(good)
+    if idx.size:
+        idx = idx[_x_shaped(grey, predicted[idx], axes[idx], reference)]
     if idx.size == 0:
         return points, found
     res = refine_corners(grey, predicted[idx], axes[idx])
@@ -765,11 +807,17 @@ def _check_no_continuation(
         "left": (points[:, 0] - (points[:, 1] - points[:, 0]), points[:, 0] - points[:, 1]),
         "right": (points[:, -1] + (points[:, -1] - points[:, -2]), points[:, -1] - points[:, -2]),
     }
-    for name, (predicted, step) in edges.items():
-        along = np.gradient(predicted, axis=0)
-        axes = np.stack([along, step], axis=1)
-        _, found = _x_corners(grey, predicted, axes, reference)
-        if found.sum() >= max(2, (len(predicted) + 1) // 2):
+    # Every edge's predictions refined at once.
+    predicted = np.concatenate([p for p, _ in edges.values()])
+    axes = np.concatenate(
+        [np.stack([np.gradient(p, axis=0), step], axis=1) for p, step in edges.values()]
+    )
+    _, found = _x_corners(grey, predicted, axes, reference)
+    start = 0
+    for name, (edge, _) in edges.items():
+        hits = int(found[start : start + len(edge)].sum())
+        start += len(edge)
+        if hits >= max(2, (len(edge) + 1) // 2):
             raise BoardMismatchError(
                 f"the chessboard's corners continue past the {name} edge of the "
                 f"{cols_g} x {rows_g} grid found: the board in view is larger than "
