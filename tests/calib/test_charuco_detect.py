@@ -20,6 +20,8 @@ from planarcal.calib.charuco import CharucoBoard
 from planarcal.calib.detect_charuco import detect_charuco, marker_cells
 from planarcal.calib.detection import BoardDetection
 from planarcal.errors import ArgumentError, BoardError, BoardMismatchError, BoardNotFoundError
+from planarcal.synth.camera import CameraModel, PlanePose
+from planarcal.synth.render import render_scene
 
 F64 = NDArray[np.float64]
 REAL = SHARED / "data" / "real"
@@ -91,6 +93,34 @@ def test_rendered_boards_ids_exact_and_at_least_opencv(scene: int) -> None:
         cv_rms = float(np.sqrt(np.mean(np.sum((cv_points - truth[cv_ids]) ** 2, axis=1))))
         ours_on_cv = error[np.isin(found.ids, cv_ids)]
         assert np.sqrt(np.mean(ours_on_cv**2)) <= cv_rms * 1.25 + 0.01
+
+
+@pytest.mark.parametrize("scene", range(2))
+def test_synth_scenes_with_lens_distortion(scene: int) -> None:
+    # planarcal.synth's renderer (an independent drawing of the board's ink, with a lens).
+    board, camera, pose = [
+        (
+            CharucoBoard(14, 9, 20, 15, "DICT_5X5_250"),
+            CameraModel(k1=-0.25),
+            PlanePose(450, tilt_deg=35, tilt_axis_deg=30, look_at_mm=(140, 90)),
+        ),
+        (
+            CharucoBoard(10, 8, 15, 11, "DICT_4X4_100"),
+            CameraModel(k1=-0.1),
+            PlanePose(350, tilt_deg=15, look_at_mm=(75, 60)),
+        ),
+    ][scene]
+    rendered = render_scene(
+        camera, pose, board=board, blur_sigma_px=1.0 + 0.5 * scene, noise_sigma=2, seed=scene
+    )
+    truth = rendered.points_px
+    found = detect_charuco(rendered.image, board)
+    error = np.linalg.norm(found.image_points - truth[found.ids], axis=1)
+    assert error.max() < 0.1
+    cv_points, cv_ids = _opencv(rendered.image, board, False)
+    assert set(cv_ids) <= set(found.ids)
+    cv_error = np.linalg.norm(cv_points - truth[cv_ids], axis=1)
+    assert np.sqrt(np.mean(error**2)) < np.sqrt(np.mean(cv_error**2))
 
 
 def test_partial_view_gives_the_corners_seen_with_their_ids() -> None:
