@@ -492,6 +492,17 @@ def _finish_partial(
     pitch = float(np.median(spacing))
     if not np.isfinite(pitch) or pitch < 4.0:
         raise _RefusedError(f"dots too close together ({pitch:.1f} px apart)")
+    if not board.dot_kinds().any():
+        # A plain board's placements need no sizes: an ambiguous view costs no refinement.
+        every = np.ones(len(points), dtype=bool)
+        fit = place_partial(lattice.nodes, points, every, ~every, board)
+        if fit.ways != 1:
+            across, down = lattice_extent(lattice, blobs.centres)
+            # Enlarged dots, by their blobs' sizes: fiducials the description may lack.
+            big = _enlarged(points, blobs.diameters[lattice.blob] ** 2, pitch)
+            raise _AmbiguousViewError(
+                PartialView(polarity, len(points), (across, down), fit.ways, int(big.sum()))
+            )
     measured = refine_centres(ink_dark, points, np.minimum(blobs.diameters[lattice.blob], spacing))
     enlarged = _enlarged(measured.centres, measured.areas, pitch)
     usable = measured.refined

@@ -107,6 +107,10 @@ def place_partial(
     size = np.array(grid.shape, dtype=np.int64)
     anchor = np.flatnonzero(usable & enlarged) if has_marks else np.zeros(0, np.intp)
     marks_at = board_pattern(board)[kinds] + shift
+    if not has_marks and board.layout == "symmetric":
+        ways = _plain_ways(nodes, centres, board)
+        if ways != 1:
+            return PartialFit([], ways)
     found: list[NDArray[np.intp]] = []
     for m in LATTICE_SYMMETRIES:
         turned = nodes @ m.T
@@ -143,6 +147,21 @@ def place_partial(
         return PartialFit([], len(classes))
     (readings,) = classes.values()
     return PartialFit(readings, 1)
+
+
+def _plain_ways(nodes: I64, centres: F64, board: CircleGridBoard) -> int:
+    """The readings of a lattice on a plain symmetric board, counted without trying them:
+    every offset that keeps the lattice's box inside the board's rectangle is a placement,
+    and each reading is as many placements as the board has turns onto itself."""
+    placements = 0
+    for m in LATTICE_SYMMETRIES:
+        turned = nodes @ m.T
+        span = turned.max(axis=0) - turned.min(axis=0)
+        fits = (board.cols - span[0]) * (board.rows - span[1])
+        inside = span[0] < board.cols and span[1] < board.rows and fits > 0
+        if inside and unmirrored(centres, lattice_to_world(board, turned)):
+            placements += int(fits)
+    return placements // len(board.reading_symmetries())
 
 
 @dataclasses.dataclass(frozen=True)
