@@ -14,7 +14,15 @@ enough of the lattice around it, or a lattice as large as the board, fits one wa
 
 The placement is anchored on an enlarged dot seen (each of the board's enlarged dots in
 turn), so its cost is the number of the board's enlarged dots, not of its offsets; without
-one every offset is tried, up to MAX_OFFSET_TESTS.
+one every offset is tried, up to MAX_OFFSET_TESTS, and on a plain symmetric board the
+placements are counted without trying them (every offset that keeps the lattice inside the
+rectangle is one).
+
+Then the view grows (join_blobs): blobs off the lattice join where the found dots around them
+put a board dot not yet found, a ring at a time and across small gaps, and other lattices
+(the far side of an object laid across the board) join whole where the homography of the
+found dots puts most of their dots, and then their own steps all of them, on dots not yet
+found, of the right kind.
 """
 
 from __future__ import annotations
