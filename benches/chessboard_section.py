@@ -125,7 +125,7 @@ def accuracy_section(out: object, quick: bool) -> None:
             h = look_at_homography(
                 scene.board.extent,
                 SIZE,
-                fill=0.7,
+                fill=0.5,
                 tilt_deg=scene.tilt,
                 tilt_axis_deg=30.0,
                 roll_deg=roll,
