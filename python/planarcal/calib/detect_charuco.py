@@ -524,9 +524,10 @@ class _CornerFinder:
         hstack = np.stack(hs)
         centres = np.array([self.corner_obj(k) for k in ks])
         # The nearest marker corners: diagonally in the two marker squares.
-        diag = np.array([[g, g], [-g, -g], [g, -g], [-g, g], [0.0, 0.0]])
+        diag = np.array([[g, g], [-g, -g], [g, -g], [-g, g], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
         mapped = _apply(hstack, centres[:, None, :] + diag[None, :, :])
         d = np.linalg.norm(mapped[:, :4] - mapped[:, 4:5], axis=2).min(axis=1)
+        square_px = np.linalg.norm(mapped[:, 5:] - mapped[:, 4:5], axis=2).min(axis=1)
         halves = np.clip((WINDOW_FRACTION * d).astype(np.int64), 2, MAX_HALF_WINDOW)
         refined = predicted.copy()
         h_img, w_img = self.grey.shape
@@ -561,11 +562,13 @@ class _CornerFinder:
         refined[use] = symmetric[use]
         moved = np.linalg.norm(refined - predicted, axis=1)
         corr = self.ink_correlation(ks, refined, hstack, centres, mapped[:, 4])
-        # Further than the nearest marker corner it would have found something else.
-        corr[~inside | (moved > np.maximum(0.8 * halves + 0.5, 0.6 * d))] = -1.0
+        # A third of a square away it would be another corner (whose ink, the other
+        # diagonal black, the check refuses anyway).
+        limit = np.maximum(np.maximum(0.8 * halves + 0.5, 0.6 * d), 0.3 * square_px)
+        corr[~inside | (moved > limit)] = -1.0
         return refined, corr
 
-    def symmetry_refine(self, start: F64, radius: F64, iterations: int = 10) -> F64:
+    def symmetry_refine(self, start: F64, radius: F64, iterations: int = 25) -> F64:
         """The centre of point symmetry of the grey levels within `radius` px of each
         corner (Gauss-Newton from `start`): the board's ink around an inner corner, the two
         black squares, the white gaps and the markers' black borders, is the same turned by
