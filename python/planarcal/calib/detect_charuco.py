@@ -14,13 +14,17 @@ chessboard corners, with OpenCV's ids, from any part of the board in view.
    homographies (as ``CharucoDetector`` does), then from the corners found so far the next
    ones are predicted by the local homography of their neighbours, so the chessboard is
    followed where markers could not be read (blur, glare, small markers). Every corner is
-   refined with ``cv2.cornerSubPix`` in a window that keeps clear of the markers, and checked
-   against the board's ink around it (black squares, white gap, marker border) mapped into
-   the image: a corner whose neighbourhood does not look like the board's is dropped, so no
-   corner carries a wrong id.
-4. A board described wrongly says so: markers of another dictionary, or ids beyond the
-   board's markers, or markers that fit another board size, raise BoardMismatchError naming
-   what was seen ("markers of DICT_5X5_100 ids 0-17: a 6 x 6 board?").
+   refined with ``cv2.cornerSubPix`` in a window that keeps clear of the markers, then to
+   the centre of point symmetry of the ink around it (the black squares, the white gaps and
+   the markers' black borders look the same turned by 180 degrees about the corner, however
+   blurred; on renders with exact truth 5 times closer than CharucoDetector's corners), and
+   checked against the board's ink around it mapped into the image: a corner whose
+   neighbourhood does not look like the board's is dropped, so no corner carries a wrong id.
+   A corner two markers vouch for is kept even so, at their prediction (``refined`` False).
+4. A board described wrongly says so: markers of another dictionary, ids beyond the board's
+   markers, markers that fit another board size, layout or marker size raise
+   BoardMismatchError naming what was seen ("markers of DICT_5X5_50 ids 0-17: a 6 x 6
+   board?").
 """
 
 from __future__ import annotations
