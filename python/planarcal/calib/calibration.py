@@ -832,7 +832,7 @@ class Calibration:
         beyond the lens model's reach)."""
         out = np.full(len(px), np.inf)
         if self.intrinsics is not None:
-            ideal = self.intrinsics.undistort_points(px)
+            ideal = self.intrinsics.undistort_points(px, invalid="nan")
             feed = ideal
         else:
             ideal = self._fit.plane.lens.undistort(px, invalid="nan")

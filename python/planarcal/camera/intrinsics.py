@@ -37,7 +37,7 @@ import math
 import os
 import reprlib
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -55,7 +55,7 @@ from planarcal.camera.distortion import (
     unfolded,
 )
 from planarcal.camera.file_storage import read_intrinsics, write_intrinsics
-from planarcal.errors import IntrinsicsError
+from planarcal.errors import ArgumentError, IntrinsicsError
 from planarcal.file_formats import CALIBRATION_FORMAT
 
 __all__ = ["MAX_IMAGE_SIDE_PX", "CameraIntrinsics"]
@@ -208,7 +208,7 @@ class CameraIntrinsics:
 
     # -- mappings --------------------------------------------------------------------------
 
-    def undistort_points(self, px: ArrayLike) -> F64:
+    def undistort_points(self, px: ArrayLike, *, invalid: Literal["raise", "nan"] = "raise") -> F64:
         """Distorted pixel positions (..., 2) -> where the ideal pinhole camera with the same
         K would see them (..., 2): the inverse of :meth:`distort_points`.
 
@@ -218,10 +218,17 @@ class CameraIntrinsics:
         (before any fold-over, where the forward map stops being one-to-one). A point that
         cannot be inverted there raises IntrinsicsError naming it: beyond the fold a
         distorted model has either no preimage or a spurious one, and any answer would be
-        wrong.
+        wrong; with ``invalid="nan"`` such a point is NaN instead (for maps over a whole
+        image, where those pixels have no place on the plane).
         """
+        if invalid not in ("raise", "nan"):
+            raise ArgumentError(f"invalid must be 'raise' or 'nan', got {invalid!r}")
         flat, shape = arguments.points("px", px, IntrinsicsError)
         ux, uy, ok = self._undistort(flat)
+        if invalid == "nan":  # a map over the whole image: such pixels have no place
+            out = self._pixels(ux, uy)
+            out[~ok] = np.nan
+            return out.reshape(*shape, 2)
         if not ok.all():
             k = int(np.flatnonzero(~ok)[0])
             n_bad = int((~ok).sum())
