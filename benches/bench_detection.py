@@ -1035,7 +1035,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if "timing" in args.only:
         timing_section(out, 1 if args.quick else 3)
     if "chessboard" in args.only:
-        chessboard_section(out, REAL, args.quick, ("accuracy", "real", "timing"))
+        chessboard_section(out, REAL, args.quick, ("accuracy", "variants", "real", "timing"))
     elapsed = time.perf_counter() - start
     out.note(f"Total run time {elapsed:.0f} s; load average {load_average()}.")
     return 0

@@ -7,10 +7,13 @@ findChessboardCornersSB (CALIB_CB_EXHAUSTIVE | CALIB_CB_ACCURACY) and findChessb
    boards at 1280 x 720, sharp and blurred (0.8, 1.5 px), with sensor noise (2, 3 grey
    levels), a lens (k = 0.15), tilts to 60 degrees; RMS and max error of every corner found
    against the truth, each finder's corners matched to the nearest true corner;
-2. **real photographs** (../shared/data/real/chess-perfanalytics-4x7 and -6x9): which finder
+2. **planarcal.synth's chessboard corpus** (its own renderer; proportions, square sizes, 640 x
+   480 to 4K, lenses, tilts, light, textures, clutter, marker boards partly covered): found
+   against visible corners, ids against the truth, error against OpenCV's;
+3. **real photographs** (../shared/data/real/chess-perfanalytics-4x7 and -6x9): which finder
    finds the board, and each corner's residual against the homography through its 8 nearest
    neighbours (itself left out), planarcal's and OpenCV's corners alike;
-3. **time**: worst of 3 runs (wall and processor time) on 1280 x 720 images with a typical
+4. **time**: worst of 3 runs (wall and processor time) on 1280 x 720 images with a typical
    board, a marker board partly out of view, noise, cluttered marks, and on a 5312 x 2988
    photograph with and without a board, against the issue's limits, judged on the processor
    time (an idle machine's wall-clock time is at most that; a loaded one's is longer).
@@ -28,6 +31,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from planarcal import synth
 from planarcal.calib.chessboard import ChessboardBoard
 from planarcal.calib.detect_chessboard import detect_chessboard
 from planarcal.errors import BoardNotFoundError
@@ -171,6 +175,60 @@ def accuracy_section(out: object, quick: bool) -> None:
         f"px. {'PASS' if all_ok else 'FAIL'}: planarcal at most both in every scene; "
         f"{'PASS' if sharp_worst <= 0.03 else 'FAIL'}: sharp renders at most 0.03 px "
         f"(worst {_fmt(sharp_worst, 4)})."
+    )
+
+
+def variants_section(out: object, seeds: int) -> None:
+    """planarcal.synth's chessboard corpus (its own renderer: proportions, square sizes,
+    640 x 480 to 4K, lenses, tilts, light, textures, clutter, partial views)."""
+    out.heading("Chessboards of planarcal.synth's corpus: found, ids, error RMS / max, px")  # type: ignore[attr-defined]
+    rows = []
+    misses = wrong_total = 0
+    for seed in range(seeds):
+        for v in synth.board_variants(seed, kind="chessboard"):
+            board = v.board
+            assert isinstance(board, ChessboardBoard)
+            grey = v.image if v.image.ndim == 2 else cv2.cvtColor(v.image, cv2.COLOR_BGR2GRAY)
+            size = (board.cols, board.rows)
+            visible = v.truth_px[v.visible]
+            cells = [f"{v.name} ({seed})", f"{board.cols}x{board.rows}"]
+            try:
+                det = detect_chessboard(v.image, board, turned=True)
+                e = np.hypot(*(det.image_points - v.truth_px[det.ids]).T)
+                wrong = int((e > 1.0).sum() + (~v.visible[det.ids]).sum())
+                wrong_total += wrong
+                cells += [
+                    f"{len(det.ids)}/{int(v.visible.sum())}",
+                    str(wrong),
+                    f"{_fmt(_rms(e))} / {_fmt(float(e.max()))}",
+                ]
+                found = True
+            except BoardNotFoundError:
+                cells += [f"0/{int(v.visible.sum())}", "-", "-"]
+                found = False
+            for theirs in (opencv_sb(grey, size), opencv_subpix(grey, size)):
+                if theirs is None:
+                    cells.append("-")
+                    continue
+                misses += 0 if found else 1
+                e = _nearest(theirs, visible)
+                cells.append(f"{_fmt(_rms(e))} / {_fmt(float(e.max()))}")
+            rows.append(cells)
+    header = [
+        "variant (seed)",
+        "board",
+        "found/visible",
+        "wrong ids",
+        "planarcal",
+        "SB+",
+        "cornerSubPix",
+    ]
+    out.table(header, rows)  # type: ignore[attr-defined]
+    out.note(  # type: ignore[attr-defined]
+        f"{'PASS' if misses == 0 else 'FAIL'}: planarcal finds every image OpenCV finds "
+        f"({misses} missed); {'PASS' if wrong_total == 0 else 'FAIL'}: no corner with a wrong "
+        f"id ({wrong_total}). A corner is wrong if more than 1 px from its id's truth or not "
+        "visible."
     )
 
 
@@ -354,9 +412,11 @@ def timing_section(out: object, runs: int) -> None:
 
 
 def chessboard_section(out: object, real: Path, quick: bool, sections: Sequence[str]) -> None:
-    """Run the chessboard measurements (`sections`: accuracy, real, timing)."""
+    """Run the chessboard measurements (`sections`: accuracy, variants, real, timing)."""
     if "accuracy" in sections:
         accuracy_section(out, quick)
+    if "variants" in sections:
+        variants_section(out, 1 if quick else 2)
     if "real" in sections:
         real_section(out, real)
     if "timing" in sections:

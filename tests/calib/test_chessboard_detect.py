@@ -14,6 +14,7 @@ import pytest
 from chessboard_scenes import RenderedBoard, look_at_homography, render_board
 from numpy.typing import NDArray
 
+from planarcal import synth
 from planarcal.calib.chessboard import ChessboardBoard
 from planarcal.calib.detect_chessboard import ChessboardDiagnostics, detect_chessboard
 from planarcal.calib.detection import detect_board
@@ -277,6 +278,22 @@ def test_float_and_colour_images_are_read_like_8_bit_grey() -> None:
     for other in (colour, unit):
         assert np.array_equal(other.ids, grey.ids)
         assert np.max(np.hypot(*(other.image_points - grey.image_points).T)) < 0.02
+
+
+@pytest.mark.parametrize("name", list(synth.CHESSBOARD_VARIANTS))
+def test_synth_corpus_every_visible_corner_with_its_id(name: str) -> None:
+    # planarcal.synth's own renderer (another author's, another drawing of the ink): every
+    # corner it says is visible is found, with its id, and none that is not.
+    variant = synth.board_variant(name, seed=0)
+    board = variant.board
+    assert isinstance(board, ChessboardBoard)
+    det = detect_chessboard(variant.image, board, turned=True)
+    assert set(det.ids.tolist()) == set(np.flatnonzero(variant.visible).tolist())
+    errors = np.hypot(*(det.image_points - variant.truth_px[det.ids]).T)
+    assert np.max(errors) < 0.1
+    assert det.partial == (not variant.visible.all())
+    if board.origin_marker:
+        assert det.orientation == "marker"
 
 
 # ------------------------------------------------------------------------------------------

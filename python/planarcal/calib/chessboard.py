@@ -30,6 +30,8 @@ from planarcal.errors import BoardError
 
 F64 = NDArray[np.float64]
 
+MIN_CORNERS_PER_SIDE = 3
+"""The fewest inner corners a side may have: OpenCV's chessboard finders need 3."""
 MAX_CORNERS_PER_SIDE = 1000
 """The most inner corners a side may have (as a circle grid's dots)."""
 
@@ -57,10 +59,10 @@ class ChessboardBoard:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer):
                 raise BoardError(f"{name} must be a whole number of inner corners, got {value!r}")
-            if not 2 <= value <= MAX_CORNERS_PER_SIDE:
+            if not MIN_CORNERS_PER_SIDE <= value <= MAX_CORNERS_PER_SIDE:
                 raise BoardError(
-                    f"{name} must be between 2 and {MAX_CORNERS_PER_SIDE} inner corners, "
-                    f"got {value}"
+                    f"{name} must be between {MIN_CORNERS_PER_SIDE} and {MAX_CORNERS_PER_SIDE} "
+                    f"inner corners, got {value}"
                 )
         try:
             arguments.positive("square", self.square, BoardError)

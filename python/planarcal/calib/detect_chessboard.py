@@ -293,7 +293,10 @@ class _Finder:
         img, scale = self._image(side)
         flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | extra
         start = time.process_time()
-        found, corners = cv2.findChessboardCorners(img, size, flags=flags)
+        try:
+            found, corners = cv2.findChessboardCorners(img, size, flags=flags)
+        except cv2.error:
+            found, corners = False, None
         if not extra:
             self._timed("classic", img.size, time.process_time() - start)
         quick = " (quick check)" if extra else ""
