@@ -187,6 +187,26 @@ def test_markers_of_one_row_cannot_tell_the_layouts_apart() -> None:
         detect_charuco(image, CharucoBoard(8, 6, 30, 22, "DICT_5X5_100", legacy=False))
 
 
+@pytest.mark.parametrize("printed_legacy", [False, True])
+def test_layout_read_from_the_board_edge_when_the_markers_fit_both(printed_legacy: bool) -> None:
+    # 7 x 8 squares: with the column holding the markers at the rows' ends out of view, the
+    # two layouts put the markers seen in the same places, one square apart; the board's
+    # other edge in view (paper beyond it, or a black square) tells which was printed.
+    board = CharucoBoard(7, 8, 30, 22, "DICT_5X5_100")
+    hom = view_homography(board, SIZE, fill=0.45)
+    image, truth = render_charuco(board, hom, SIZE, legacy=printed_legacy, blur=0.7, noise=2)
+    square_px = truth[1, 0] - truth[0, 0]
+    if printed_legacy:  # the last column out of the frame
+        image = np.ascontiguousarray(image[:, : int(truth[5, 0] + 0.3 * square_px)])
+    else:  # the first column out of the frame
+        left = int(truth[0, 0] - 0.3 * square_px)
+        image = np.ascontiguousarray(image[:, left:])
+        truth = truth - [left, 0]
+    found = detect_charuco(image, board)
+    assert found.layout == ("legacy" if printed_legacy else "current")
+    assert np.linalg.norm(found.image_points - truth[found.ids], axis=1).max() < 0.3
+
+
 def _render(board: CharucoBoard, **view: float) -> NDArray[np.uint8]:
     hom = view_homography(board, SIZE, **view)  # type: ignore[arg-type]
     image, _ = render_charuco(board, hom, SIZE, blur=0.7, noise=2.0)

@@ -805,6 +805,9 @@ def _choose_layout(
     ids = markers.ids_on
     if board.legacy is None and board.layouts_differ:
         if scores[False] == scores[True] and scores[False][0] >= 2:
+            by_edge = _layout_from_board_edge(board, markers, inset, groups[False])
+            if by_edge is not None:
+                return by_edge, groups[by_edge]
             raise BoardNotFoundError(
                 f"the {len(ids)} markers seen (ids {_id_ranges(ids)}) fit both printed layouts "
                 "of this board (it has an even number of rows, and the markers seen do not "
@@ -824,6 +827,82 @@ def _choose_layout(
                 f"the board with legacy={not legacy} (or None to read either)"
             )
     return legacy, groups[legacy]
+
+
+def _layout_from_board_edge(
+    board: CharucoBoard, markers: _Markers, inset: float, keep: NDArray[np.bool_]
+) -> bool | None:
+    """The layout (legacy or not) that the board's edge in view shows, when the markers'
+    places fit both (the two layouts then differ by a shift of one square: the markers at
+    the ends of the rows, which would tell, are out of view). Next to a marker, a square
+    that one layout has black the other has beyond the board: light paper. None when no such
+    square is in view or its grey levels do not say."""
+    quad, ids = markers.quad_on[keep], markers.ids_on[keep]
+    hs = _MarkerPairs(quad, inset).hs
+    if len(ids) < 2:
+        return None
+    offsets = np.array([(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dx or dy])
+    expected = []
+    for legacy in (False, True):
+        cells = marker_cells(board.squares_x, board.squares_y, legacy)
+        marker_parity = int(cells[0].sum() % 2)
+        near = cells[ids][:, None, :] + offsets[None, :, :]
+        x, y = near[..., 0], near[..., 1]
+        on_board = (x >= 0) & (y >= 0) & (x < board.squares_x) & (y < board.squares_y)
+        is_marker = on_board & ((x + y) % 2 == marker_parity)
+        # 1: a black square, 0: beyond the board, -1: a marker square (not compared).
+        expected.append(np.where(is_marker, -1, np.where(on_board, 1, 0)))
+    differ = (expected[0] != expected[1]) & (expected[0] >= 0) & (expected[1] >= 0)
+    if not differ.any():
+        return None
+    # Each square's middle half, sampled through its marker's homography.
+    u = np.array([0.3, 0.5, 0.7])
+    patch = np.stack(np.meshgrid(u, u), axis=-1).reshape(-1, 2)
+    marker_idx, offset_idx = np.nonzero(differ)
+    pts = offsets[offset_idx][:, None, :] + patch[None, :, :]
+    px = _apply(hs[marker_idx], pts.astype(np.float64)).astype(np.float32)
+    h, w = markers.small.shape
+    inside = np.all((px[..., 0] >= 0) & (px[..., 0] <= w - 1), axis=1) & np.all(
+        (px[..., 1] >= 0) & (px[..., 1] <= h - 1), axis=1
+    )
+    if not inside.any():
+        return None
+    values = cv2.remap(
+        markers.small.astype(np.float32), px[..., 0], px[..., 1], cv2.INTER_LINEAR
+    ).mean(axis=1)[inside]
+    black_if_current = expected[0][marker_idx, offset_idx][inside] == 1
+    # The black squares both layouts have next to the markers: the ink's grey.
+    mi, oi = np.nonzero((expected[0] == 1) & (expected[1] == 1))
+    if len(mi) == 0:
+        return None
+    ref = _apply(hs[mi], (offsets[oi][:, None, :] + patch[None, :, :]).astype(np.float64))
+    ref32 = ref.astype(np.float32)
+    black = float(
+        np.median(
+            cv2.remap(
+                markers.small.astype(np.float32), ref32[..., 0], ref32[..., 1], cv2.INTER_LINEAR
+            )
+        )
+    )
+    # Only light paper decides: a dark square there may be a black square or a dark table
+    # beyond a board printed to its edge. The layout that has the board end where the
+    # image is light (and, where it has black squares, dark) is the one printed.
+    lighter = values - black >= LIGHT_PAPER
+    for legacy, its_black in ((False, black_if_current), (True, ~black_if_current)):
+        beyond = ~its_black
+        if (
+            beyond.sum() >= 2
+            and lighter[beyond].all()
+            and not lighter[its_black].any()
+            and (lighter[beyond].sum() > 0)
+        ):
+            return legacy
+    return None
+
+
+LIGHT_PAPER = 50.0
+"""Grey levels above the black squares' that a square must show to be read as the paper
+beyond the board's edge."""
 
 
 def _refuse(
