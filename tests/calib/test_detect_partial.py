@@ -25,6 +25,7 @@ from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.detect import detect_board
 from planarcal.calib.detection import BoardDetection
+from planarcal.calib.dot_sizes import clipped_paper_share
 from planarcal.calib.grid_search import Lattice
 from planarcal.calib.partial_view import place_partial
 from planarcal.errors import BoardError, BoardMismatchError, BoardNotFoundError
@@ -126,6 +127,30 @@ def test_a_board_without_fiducials_is_described_as_before() -> None:
 def test_a_wrong_fiducial_description_is_refused(kwargs: dict[str, object], match: str) -> None:
     with pytest.raises(BoardError, match=match):
         CircleGridBoard(16, 14, 5.0, **kwargs)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "fiducials", ["abc", None, [1.5], [500], {"a": 1}, [[69]]], ids=lambda v: repr(v)
+)
+def test_a_damaged_fiducials_entry_in_a_saved_description_is_a_board_error(
+    fiducials: object,
+) -> None:
+    data = {**UCL_BOARD.to_dict(), "fiducials": fiducials}
+    with pytest.raises(BoardError):
+        CircleGridBoard.from_dict(data)
+
+
+def test_the_paper_check_counts_the_found_dots_only() -> None:
+    """The overexposure check (the paper midway between neighbours along a row) on a partial
+    view looks between found neighbours only, by id."""
+    board = CircleGridBoard(4, 3, 10.0)
+    ink = np.full((40, 60), 255.0, dtype=np.float32)  # paper clipped everywhere
+    ids = np.array([0, 1, 2, 5, 6, 11], dtype=np.intp)
+    points = board.world_points()[ids] + 5.0
+    assert clipped_paper_share(ink, points, board, ids) == 1.0
+    ink[:, 11:] = 100.0  # the paper between dots 0 and 1 alone stays clipped
+    assert clipped_paper_share(ink, points, board, ids) == pytest.approx(1 / 3)
+    assert clipped_paper_share(ink, points[[0, 3, 5]], board, ids[[0, 3, 5]]) == 0.0
 
 
 def test_fiducials_fix_the_orientation_only_where_they_break_the_symmetry() -> None:
