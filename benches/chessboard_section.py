@@ -256,6 +256,7 @@ def real_section(out: object, real: Path) -> None:
     misses = 0
     pooled: dict[str, list[F64]] = {"planarcal": [], "sb": [], "subpix": []}
     pooled_common: dict[str, list[F64]] = {"planarcal": [], "sb": []}
+    wins = duels = 0
     for folder, size in REAL_SETS:
         path = real / folder
         if not path.is_dir():
@@ -289,6 +290,8 @@ def real_section(out: object, real: Path) -> None:
                     if name == "sb":
                         pooled_common["planarcal"].append(r)
                         pooled_common["sb"].append(rr)
+                        wins += int(_rms(r) <= _rms(rr))
+                        duels += 1
             cells += [_fmt(res.get(k)) for k in ("planarcal", "sb", "subpix")]
             rows.append(cells)
     if not rows:
@@ -304,7 +307,8 @@ def real_section(out: object, real: Path) -> None:
         f"({misses} missed). Pooled neighbour residual RMS: planarcal "
         f"{_fmt(pooled_rms(pooled['planarcal']))} px over every photograph it finds; on the "
         f"photographs SB+ finds, planarcal {_fmt(pooled_rms(pooled_common['planarcal']))} vs "
-        f"SB+ {_fmt(pooled_rms(pooled_common['sb']))}; cornerSubPix (11 x 11) "
+        f"SB+ {_fmt(pooled_rms(pooled_common['sb']))} (planarcal's lower or equal on {wins} "
+        f"of {duels}); cornerSubPix (11 x 11) "
         f"{_fmt(pooled_rms(pooled['subpix']))} on the photographs the classic finder finds."
     )
 
