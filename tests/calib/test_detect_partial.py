@@ -21,8 +21,9 @@ import pytest
 from numpy.typing import NDArray
 
 from conftest import SHARED
-from planarcal import synth
+from planarcal import cli, synth
 from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
 from planarcal.calib.detection import BoardDetection
 from planarcal.calib.dot_sizes import clipped_paper_share
@@ -492,3 +493,30 @@ def test_a_plain_board_in_full_view_with_glare_is_read_without_the_lost_dots() -
     )
     assert err < 0.05
     assert len(det.ids) == board.n_points - len(lost)
+
+
+# --------------------------------------------------------------------------- the command line
+
+
+def test_the_command_line_reads_a_cut_off_plate_by_its_fiducials(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`planarcal calibrate --fiducials` reads the plate with four columns cut off by the
+    image's edge, saves the dots it saw by id, and refuses the same view described without
+    them, saying how to describe them."""
+    crop = tmp_path / "crop.png"
+    cv2.imwrite(str(crop), _ucl("14_09_35")[:, 620:])
+    board = ["--cols", "16", "--rows", "14", "--pitch", "5"]
+    out = tmp_path / "cal.json"
+    assert (
+        cli.main(["calibrate", str(crop), *board, "--fiducials", "69,74,149,154", "-o", str(out)])
+        == 0
+    )
+    cal = Calibration.load(out)
+    assert cal.board == UCL_BOARD
+    ids = np.asarray(cal.point_ids)
+    assert 150 < len(ids) < 224 and 0 not in ids and {69, 74, 149, 154} <= set(ids.tolist())
+    capsys.readouterr()
+    assert cli.main(["calibrate", str(crop), *board, "-o", str(tmp_path / "no.json")]) == 1
+    said = capsys.readouterr().err
+    assert "partial and ambiguous" in said and "--fiducials K,K" in said

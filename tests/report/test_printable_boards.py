@@ -391,6 +391,8 @@ def run(capsys: pytest.CaptureFixture[str], *words: str) -> tuple[int, str, str]
     [
         CircleGridBoard(),
         CircleGridBoard(4, 11, 15.0, diameter=10.0, origin_marker=True, layout="asymmetric"),
+        CircleGridBoard(16, 14, 5.0, fiducials=(69, 74, 149, 154)),
+        CircleGridBoard(8, 6, 20.0, diameter=8.0, fiducials=(9,), fiducial_diameter=14.0),
         ChessboardBoard(),
         ChessboardBoard(7, 4, 12.5, origin_marker=True),
         CharucoBoard(),

@@ -1111,14 +1111,15 @@ def _explain(
         if view.enlarged and not board.dot_kinds().any():
             lines.append(
                 f"{view.enlarged} enlarged dot(s) seen among them: if the board has fiducial "
-                "dots or an origin marker, describe them (fiducials=(ids...), origin_marker) "
+                "dots or an origin marker, describe them (--fiducials K,K,... or --origin-marker; "
+                "fiducials=(ids...) or origin_marker=True in Python) "
                 "and the view is read from them."
             )
         marks = (
             "or let its enlarged dots be seen"
             if board.dot_kinds().any()
             else "or use a board that identifies its dots (an origin marker, --origin-marker, "
-            "or fiducial dots, fiducials=(ids...))"
+            "or fiducial dots, --fiducials K,K,...)"
         )
         hints.append(
             f"fewer dots than the board has: put the whole board in view (not cut off or "

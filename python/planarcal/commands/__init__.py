@@ -104,6 +104,8 @@ _OPTION_TYPES: dict[str, tuple[str, ...]] = {
     "diameter": ("circles",),
     "layout": ("circles",),
     "marker_diameter": ("circles",),
+    "fiducials": ("circles",),
+    "fiducial_diameter": ("circles",),
     "square": ("chessboard", "charuco"),
     "squares_x": ("charuco",),
     "squares_y": ("charuco",),
@@ -114,8 +116,8 @@ _OPTION_TYPES: dict[str, tuple[str, ...]] = {
 
 # What a board of each type is told with, for a refusal to name.
 _TYPE_OPTIONS = {
-    "circles": "--cols, --rows, --pitch, --diameter, --layout, --origin-marker and "
-    "--marker-diameter",
+    "circles": "--cols, --rows, --pitch, --diameter, --layout, --origin-marker, "
+    "--marker-diameter, --fiducials and --fiducial-diameter",
     "chessboard": "--cols and --rows (inner corners), --square and --origin-marker",
     "charuco": "--squares-x, --squares-y, --square, --marker, --dictionary and --legacy",
 }
@@ -253,6 +255,22 @@ def board_arguments(p: argparse.ArgumentParser, *, for_printing: bool = False) -
         help="diameter of the origin marker, at most the distance to its neighbours "
         "(default 1.5 x the dots, or less where that would crowd them)",
     )
+    dots.add_argument(
+        "--fiducials",
+        type=_dot_ids,
+        default=(),
+        action=_Noted,
+        metavar="K,K,...",
+        help="dots printed larger anywhere in the grid, by id (0-based, k = row x cols + "
+        "column): they identify every dot, so a board partly out of view is read",
+    )
+    dots.add_argument(
+        "--fiducial-diameter",
+        type=positive,
+        default=None,
+        action=_Noted,
+        help="the fiducial dots' diameter (default: an origin marker's)",
+    )
 
     squares = p.add_argument_group("chessboard and ChArUco board (--type chessboard, charuco)")
     squares.add_argument(
@@ -303,6 +321,19 @@ def board_arguments(p: argparse.ArgumentParser, *, for_printing: bool = False) -
         "yes, OpenCV before 4.6; no, 4.6 and later; auto (default): "
         + ("the current one" if for_printing else "either, found from the image"),
     )
+
+
+def _dot_ids(text: str) -> tuple[int, ...]:
+    """'69,74,149' as dot ids; the board checks they are its."""
+    try:
+        ids = tuple(int(w) for w in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected dot ids separated by commas (69,74,149), got {text!r}"
+        ) from None
+    if any(k < 0 for k in ids):
+        raise argparse.ArgumentTypeError(f"dot ids start at 0, got {text!r}")
+    return ids
 
 
 def _refuse_other_types(kind: str, given: dict[str, str]) -> None:
@@ -366,6 +397,8 @@ def board_from(args: argparse.Namespace) -> Board:
             origin_marker=args.origin_marker,
             marker_diameter=args.marker_diameter,
             layout=args.layout,
+            fiducials=args.fiducials,
+            fiducial_diameter=args.fiducial_diameter,
         )
 
 

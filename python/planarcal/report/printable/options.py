@@ -36,6 +36,10 @@ def board_options(board: Board, *, for_printing: bool = False) -> list[str]:
         words += _marker_words(board.origin_marker, for_printing)
         if board.origin_marker and board.marker_diameter is not None:
             words += ["--marker-diameter", exact_mm(board.marker_diameter)]
+        if board.fiducials:
+            words += ["--fiducials", ",".join(str(k) for k in board.fiducials)]
+            if board.fiducial_diameter is not None:
+                words += ["--fiducial-diameter", exact_mm(board.fiducial_diameter)]
         return words
     if isinstance(board, CharucoBoard):
         words = ["--type", "charuco", "--squares-x", str(board.squares_x)]
