@@ -60,6 +60,16 @@ SEARCH_DEADLINE_S = 1.2
 bound for any 720p image is 2 s)."""
 
 MIN_CORNERS = 4
+
+INK_MATCH = 0.5
+"""The least correlation between the grey levels about a refined corner and the board's ink
+there for the corner to be kept where it was refined."""
+
+MAX_ASYMMETRY = 1.0
+"""The most a refined corner's disc may differ from itself turned by 180 degrees (RMS over
+the grey levels' spread): real corners, blurred, tilted, in JPEG, stay below 0.65; one half
+hidden by an object reaches 1.4."""
+
 WINDOW_FRACTION = 0.75
 """cornerSubPix's half window, as a fraction of the distance from the corner to the nearest
 marker corner in the image (the window's corners, at sqrt(2) times the half window, stay
@@ -473,6 +483,7 @@ class _CornerFinder:
         self.blurred = np.asarray(
             cv2.GaussianBlur(grey.astype(np.float32), (0, 0), SMOOTHING_SIGMA), np.float32
         )
+        self.asymmetry = np.zeros(0)
         self._gradients: (
             tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]] | None
         ) = None
@@ -569,7 +580,10 @@ class _CornerFinder:
         # A third of a square away it would be another corner (whose ink, the other
         # diagonal black, the check refuses anyway).
         limit = np.maximum(np.maximum(0.8 * halves + 0.5, 0.6 * d), 0.3 * square_px)
-        corr[~inside | (moved > limit)] = -1.0
+        # Not symmetric about the point found: part of the corner hidden (an occluder's
+        # edge pulls the fit), not a corner to keep where it was refined.
+        lopsided = use & (self.asymmetry > MAX_ASYMMETRY)
+        corr[~inside | (moved > limit) | lopsided] = -1.0
         return refined, corr
 
     def symmetry_refine(self, start: F64, radius: F64, iterations: int = 25) -> F64:
@@ -631,6 +645,17 @@ class _CornerFinder:
             active = active[norm >= 0.005]
             if len(active) == 0:
                 break
+        # How far from symmetric the disc is at the end: the turned difference's RMS over
+        # the grey levels' spread (a corner half hidden by something else is not symmetric).
+        a = q[:, None, :] + v[None, :, :]
+        b = q[:, None, :] - v[None, :, :]
+        ia, ib = sample(img, a), sample(img, b)
+        wsum = np.maximum(weight.sum(1), 1e-9)
+        mean = (weight * (ia + ib)).sum(1) / (2 * wsum)
+        spread = np.sqrt(
+            (weight * ((ia - mean[:, None]) ** 2 + (ib - mean[:, None]) ** 2)).sum(1) / (2 * wsum)
+        )
+        self.asymmetry = np.sqrt((weight * (ia - ib) ** 2).sum(1) / wsum) / np.maximum(spread, 1.0)
         return np.asarray(q, np.float64)
 
     def ink_correlation(
@@ -689,11 +714,13 @@ class _CornerFinder:
             tried.update(ks)
             # Two markers vouch for a corner's id; the ink check only keeps its refinement
             # honest. One marker alone must show the board's ink around the corner.
-            ok = [i for i, k in enumerate(ks) if corr[i] >= (0.0 if k in two else 0.5)]
+            ok = [i for i in range(len(ks)) if corr[i] >= INK_MATCH]
+            # Two markers vouch for a corner whose refinement the ink does not confirm
+            # (an occluder's edge, glare): kept at their prediction, not refined.
             fallback = [
                 i
                 for i, k in enumerate(ks)
-                if k in two and corr[i] < 0.0 and self._inside(predicted[i])
+                if k in two and corr[i] < INK_MATCH and self._inside(predicted[i])
             ]
             self.accept([ks[i] for i in ok], refined[ok])
             self.accept([ks[i] for i in fallback], predicted[fallback], refined=False)
@@ -726,7 +753,7 @@ class _CornerFinder:
                 [_apply(h, self.corner_obj(k)[None])[0] for k, h in zip(cand, hs_c, strict=True)]
             )
             refined, corr = self.refine(cand, predicted, hs_c)
-            keep = [i for i in range(len(cand)) if corr[i] >= 0.5]
+            keep = [i for i in range(len(cand)) if corr[i] >= INK_MATCH]
             if keep:
                 self.accept([cand[i] for i in keep], refined[keep])
         return self.found
