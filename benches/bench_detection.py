@@ -17,7 +17,10 @@ sections:
    nearest true centre, as the orders may differ), planarcal's error at the enlarged dots,
    median times. PASS when planarcal finds every image OpenCV finds. Then the same images
    with the diameter given wrong by +50 % and -50 % (the full board otherwise, marker
-   included; boards that cannot exist are skipped): PASS when the same images are found.
+   included; boards that cannot exist are skipped): PASS when no such image gives a board
+   silently where the right description gives none, and every image is either refused for
+   its description (BoardMismatchError: the dots measured against the stated size) or found
+   as without the diameter (dots too small to measure are not judged).
 3. **Real photographs** in ``../shared/data/real`` (skipped with a note when absent): the six
    BoofCV-Data photographs (10 x 8, pitch 25 mm) and the four UCL metal-plate photographs
    (16 x 14, pitch 5 mm, four enlarged fiducials). Images found by planarcal, by OpenCV's
@@ -76,7 +79,7 @@ import planarcal
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.detect import BoardDetection, detect_board
-from planarcal.errors import BoardError, BoardNotFoundError
+from planarcal.errors import BoardError, BoardMismatchError, BoardNotFoundError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -363,9 +366,13 @@ def measure_variant(v: synth.BoardVariant, tally: VariantTally) -> None:
             board = dataclasses.replace(v.board, diameter=v.board.dots_mm() * factor)
         except BoardError:
             continue
-        wrong, _ = planarcal_points(v.image, board)
-        counts = tally.wrong.setdefault(factor, [0, 0, 0])
+        counts = tally.wrong.setdefault(factor, [0, 0, 0, 0])
         counts[0] += 1
+        try:
+            wrong, _ = planarcal_points(v.image, board)
+        except BoardMismatchError:
+            counts[3] += 1  # refused for its description: what a wrong diameter should get
+            continue
         counts[1] += (wrong is not None) == (detection is not None)
         counts[2] += wrong is not None
 
@@ -415,34 +422,37 @@ def variants_section(out: Output, seeds: int) -> None:
 def wrong_diameter_note(out: Output, tallies: Sequence[VariantTally]) -> None:
     rows, ok = [], True
     for factor in WRONG_FACTORS:
-        tried = same = found = 0
+        tried = same = found = refused = 0
         differ = []
         for t in tallies:
-            counts = t.wrong.get(factor, [0, 0, 0])
+            counts = t.wrong.get(factor, [0, 0, 0, 0])
             tried, same, found = tried + counts[0], same + counts[1], found + counts[2]
-            if counts[1] < counts[0]:
+            refused += counts[3]
+            if counts[1] + counts[3] < counts[0]:
                 differ.append(t.name)
         skipped = sum(t.seeds for t in tallies) - tried
-        ok &= same == tried
+        ok &= same + refused == tried
         rows.append(
             [
                 f"{100 * (factor - 1):+.0f} %",
                 str(tried),
+                str(refused),
                 str(found),
-                f"{same}/{tried}",
+                f"{same + refused}/{tried}",
                 str(skipped),
                 ", ".join(differ) or "-",
             ]
         )
-    header = ("diameter", "images", "found", "same outcome", "skipped", "differing")
+    header = ("diameter", "images", "refused", "found", "refused or same", "skipped", "differing")
     out.note("The same images with the board's dot diameter given wrong:")
     out.table(header, rows)
     out.note(
-        "'same outcome': found, or not, as without the diameter; 'skipped': the wrong "
+        "'refused': BoardMismatchError naming the measured and the stated size; 'refused or "
+        "same': refused, or found or not as without the diameter; 'skipped': the wrong "
         "diameter makes no board (dots wider than their spacing, or a marker no longer "
         "larger than them)."
     )
-    out.note(f"{verdict(ok)}: a wrong diameter finds the same images")
+    out.note(f"{verdict(ok)}: a wrong diameter is refused or finds the same images")
 
 
 # ------------------------------------------------------------------------------------------
