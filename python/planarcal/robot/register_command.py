@@ -4,7 +4,10 @@ write the calibration with the registration (atomically).
 
 A touch named as an outlier (on the wrong dot, a mistyped coordinate) is not averaged into a
 saved registration: unless ``--drop-outliers`` leaves it out, nothing is written and the
-command exits 1, naming the dot and the CSV line to touch again. A registration judged poor
+command exits 1, naming the point ("dot 7" on a circle grid, "corner 7" on a chessboard or a
+ChArUco board: the table and the messages use the board's word) and the CSV line to touch
+again. A CSV whose id column names the other kind of point than the calibration's board has
+is refused (``touch_csv.check_point_name``). A registration judged poor
 (by its leave-one-out error or by the map's own error at the board's corners) is not written
 either unless ``--force`` asks for it; touches on one line with no hand given
 (``--handedness``, ``--no-mirror``) are refused before a fit."""
@@ -23,7 +26,13 @@ from planarcal.commands import positive
 from planarcal.robot.handedness import HANDEDNESS
 from planarcal.robot.registration import RobotFrame
 from planarcal.robot.summary import USABLE_MM, judged_mm, quality
-from planarcal.robot.touch_csv import COLUMN_SETS, TouchPoints, read_touch_csv
+from planarcal.robot.touch_csv import (
+    COLUMN_SETS,
+    TouchPoints,
+    check_point_name,
+    read_touch_csv,
+)
+from planarcal.robot.touch_pairs import DEFAULT_POINT_NAME
 from planarcal.robot.transform_fit import MODELS
 
 
@@ -36,7 +45,8 @@ def add_parser(subcommands: Any) -> argparse.ArgumentParser:
         "point pairs in a CSV, print each pair's residual and the fit's quality, and save the "
         "calibration with the registration: 'locate' and 'run' then give robot mm. The CSV "
         "has a header and one of the column sets " + "; ".join(COLUMN_SETS) + " (mm; image "
-        "in px). A dot's index is k = row x cols + col, 0 the origin dot. Touches on one line "
+        "in px): the id column is 'dot' for a circle grid, 'corner' for a chessboard or a "
+        "ChArUco board, its id k = row x cols + col, 0 the origin point. Touches on one line "
         "need the hand given (--handedness, --no-mirror); a poor registration is written "
         "only with --force.",
     )
@@ -101,7 +111,10 @@ def main(args: argparse.Namespace) -> int:
     propagate (the CLI reports them)."""
     cal = Calibration.load(args.calibration)
     touches = read_touch_csv(args.points)
-    registered = cal.register(
+    point_name = DEFAULT_POINT_NAME if cal.board is None else cal.board.point_name
+    if cal.board is not None:
+        check_point_name(touches, point_name, cal.board.describe(), args.points, args.calibration)
+    fitted = cal.register(
         touches.robot,
         dots=touches.dots,
         board_mm=touches.board if touches.kind == "board" else None,
@@ -111,9 +124,11 @@ def main(args: argparse.Namespace) -> int:
         outlier_mm=args.outlier_mm,
         drop_outliers=args.drop_outliers,
         handedness=args.handedness,
-    )
-    frame = registered.robot_frame
-    assert frame is not None
+    ).robot_frame
+    assert fitted is not None
+    # The board's word for pairs given as positions too: "touch corners nearer ...".
+    frame = fitted.with_point_name(point_name)
+    registered = cal.with_robot_frame(frame)
     refusal = _refusal(frame, touches, args)
     saved = None if refusal else registered.save(args.output)
     if args.json:

@@ -32,6 +32,7 @@ from planarcal.robot.prediction_error import (
     prediction_std_mm,
 )
 from planarcal.robot.summary import registration_summary
+from planarcal.robot.touch_pairs import DEFAULT_POINT_NAME, PointIds, checked_point_name
 from planarcal.robot.transform_fit import (
     F64,
     MODELS,
@@ -77,8 +78,10 @@ class RobotFrame:
     ``plane_std_mm`` is each board point's own 1-sigma error (RMS distance, mm) where the
     board points were measured rather than known (N-point pairs mapped from pixels), else
     None. ``handedness`` is the hand given to the fit ("right", "left"; None: the touches'),
-    ``dots`` the board dot index of each pair when the pairs were given as dots (the table
-    and the messages name the pairs by them), ``work_area_mm`` the corners ((x0, y0), (x1,
+    ``dots`` the board point id of each pair when the pairs were given as ids (the table and
+    the messages name the pairs by them; the field keeps its name, and the file's, for every
+    board), ``point_name`` what the board calls its points ("dot" on a circle grid, "corner"
+    on a chessboard or ChArUco board: "corner 12"), ``work_area_mm`` the corners ((x0, y0), (x1,
     y1)) of the board area the map serves (the board's extent; None: the touched points'),
     where the judgement looks at the map's own error. ``outlier_search_capped``: the outlier
     search stopped after MAX_OUTLIERS removals with a touch still above the threshold."""
@@ -108,6 +111,7 @@ class RobotFrame:
     dots: tuple[int, ...] | None = None
     work_area_mm: F64 | None = None
     outlier_search_capped: bool = False
+    point_name: str = DEFAULT_POINT_NAME
 
     @classmethod
     def fit(
@@ -123,6 +127,7 @@ class RobotFrame:
         handedness: Handedness | None = None,
         dots: ArrayLike | None = None,
         work_area_mm: ArrayLike | None = None,
+        point_name: str | None = None,
     ) -> RobotFrame:
         """The registration fitted to pairs of board points (N, 2) and robot points (N, 2),
         or (N, 3) with z (or z as ``robot_z``), all in mm. ``outlier_mm`` is the leave-one-out
@@ -134,8 +139,11 @@ class RobotFrame:
         with z up from the table, "right" (a mirrored map: the usual) or "left" (not
         mirrored), for rigid and similarity; None takes it from the touches, which must then
         lie off one line by well over their noise (RegistrationError otherwise, naming the
-        touches at the line's ends). ``dots`` (N,): the board dot index of each pair, for
-        the table and the messages. ``work_area_mm``: points (K, 2) whose bounding box is the
+        touches at the line's ends). ``dots`` (N,): the board point id of each pair, for
+        the table and the messages. ``point_name``: what the board calls its points
+        (``board.point_name``: "dot", "corner"), the word the table and the messages use;
+        None: the name ``dots`` carries (touch_pairs.PointIds, as Calibration.register gives
+        them), else "dot". ``work_area_mm``: points (K, 2) whose bounding box is the
         area the map serves (the board's extent), where the judgement (``quality``) looks at
         the map's own error. ArgumentError for malformed arguments, RegistrationError for
         pairs that cannot fix the model."""
@@ -149,12 +157,13 @@ class RobotFrame:
         )
         plane, robot, z = _pairs(plane_mm, robot_mm, robot_z)
         plane_std = _plane_std(plane_std_mm, len(plane))
-        dot_index = _dots(dots, len(plane))
+        name = _point_name(point_name, dots)
+        dot_index = _dots(dots, len(plane), name)
         area = _work_area(work_area_mm)
         check_geometry(plane, robot, model)
         try:
             fitted = _Fitted.of(plane, robot, model, mirrored, threshold_given, drop_outliers)
-            fitted.check_hand(plane, plane_std, mirrored, dot_index)
+            fitted.check_hand(plane, plane_std, mirrored, _namer(dot_index, name))
         except (np.linalg.LinAlgError, FloatingPointError, OverflowError) as e:
             # A safeguard: _pairs bounds the coordinates, so this is not a path.
             raise RegistrationError(f"the point pairs cannot be fitted ({e})") from None
@@ -192,12 +201,19 @@ class RobotFrame:
             dots=dot_index,
             work_area_mm=None if area is None else _frozen(area),
             outlier_search_capped=fitted.search.capped,
+            point_name=name,
         )
 
     def pair_name(self, index: int) -> str:
-        """How the table and the messages name pair ``index``: "dot k" (its board dot) when
-        the pairs were given as dots, else "touch i" (its row, from 0)."""
-        return _namer(self.dots)(index)
+        """How the table and the messages name pair ``index``: "dot k" or "corner k" (its
+        board point, by ``point_name``) when the pairs were given as ids, else "touch i" (its
+        row, from 0)."""
+        return _namer(self.dots, self.point_name)(index)
+
+    def with_point_name(self, point_name: str) -> RobotFrame:
+        """This registration with the board's points called ``point_name`` ("dot",
+        "corner") in its table and messages; the fit is unchanged."""
+        return dataclasses.replace(self, point_name=checked_point_name(point_name))
 
     @property
     def used(self) -> NDArray[np.bool_]:
@@ -330,10 +346,14 @@ class RobotFrame:
         }
 
     @classmethod
-    def from_dict(cls, data: Any, source: str = "the registration") -> RobotFrame:
+    def from_dict(
+        cls, data: Any, source: str = "the registration", *, point_name: str | None = None
+    ) -> RobotFrame:
         """The registration a dict from to_dict describes: refitted from its pairs and checked
         against its stored transform; CalibrationFileError if it is malformed, of another
-        version, or does not hold together."""
+        version, or does not hold together. ``point_name``: what the calibration's board
+        calls its points (the file does not store it: its fields are those of every board),
+        "dot" if None."""
         if not isinstance(data, dict):
             raise CalibrationFileError(f"{source} is not a registration (not a JSON object)")
         if data.get("format") != FORMAT or data.get("version") != VERSION:
@@ -354,6 +374,7 @@ class RobotFrame:
                 handedness=data.get("handedness"),
                 dots=data.get("dots"),
                 work_area_mm=data.get("work_area_mm"),
+                point_name=point_name,
             )
             stored = np.asarray(data["plane_to_robot"], dtype=np.float64)
             reflected, outliers = data["reflected"], data["outliers"]
@@ -449,21 +470,30 @@ def _rotation_and_scale(
     return angle, (1.0 if model == "rigid" else scale)
 
 
-def _dots(value: ArrayLike | None, n: int) -> tuple[int, ...] | None:
-    """The board dot index of each pair (N,), checked: whole numbers >= 0 (not bools)."""
+def _point_name(given: str | None, dots: ArrayLike | None) -> str:
+    """The word for the board's points: the one given, else the one the ids carry."""
+    if given is not None:
+        return checked_point_name(given)
+    return dots.point_name if isinstance(dots, PointIds) else DEFAULT_POINT_NAME
+
+
+def _dots(value: ArrayLike | None, n: int, point_name: str) -> tuple[int, ...] | None:
+    """The board point id of each pair (N,), checked: whole numbers >= 0 (not bools)."""
     if value is None:
         return None
     try:
         items = np.asarray(value, dtype=object)
     except (TypeError, ValueError):
-        raise ArgumentError("dots must be a list of N dot indices") from None
+        raise ArgumentError(f"dots must be a list of N {point_name} indices") from None
     if items.shape != (n,):
         raise ArgumentError(f"dots must have shape ({n},), got {items.shape}")
     out = []
     for i, v in enumerate(items.tolist()):
         whole = isinstance(v, int | np.integer) and not isinstance(v, bool | np.bool_)
         if not whole or v < 0:
-            raise ArgumentError(f"dots: {v!r} (pair {i}) is not a dot index (a whole number)", i)
+            raise ArgumentError(
+                f"dots: {v!r} (pair {i}) is not a {point_name} index (a whole number)", i
+            )
         out.append(int(v))
     return tuple(out)
 
@@ -479,11 +509,11 @@ def _work_area(value: ArrayLike | None) -> F64 | None:
     return np.array([flat.min(axis=0), flat.max(axis=0)])
 
 
-def _namer(dots: tuple[int, ...] | None) -> Callable[[int], str]:
-    """How messages name pair i: by its dot, else by its row."""
+def _namer(dots: tuple[int, ...] | None, point_name: str) -> Callable[[int], str]:
+    """How messages name pair i: by its board point ("dot 7", "corner 7"), else by its row."""
     if dots is None:
         return lambda i: f"touch {i}"
-    return lambda i: f"dot {dots[i]}"
+    return lambda i: f"{point_name} {dots[i]}"
 
 
 def _capped_warning(search: OutlierSearch) -> tuple[str, ...]:
@@ -544,7 +574,7 @@ class _Fitted:
         plane: F64,
         plane_std: F64 | None,
         mirrored: bool | None,
-        dots: tuple[int, ...] | None,
+        name: Callable[[int], str],
     ) -> None:
         """RegistrationError unless the touches not named outliers fix the hand (or it was
         given), or when an affine fit's hand is not the one given."""
@@ -553,7 +583,6 @@ class _Fitted:
             self.residual_xy[trusted], self.model, None if plane_std is None else plane_std[trusted]
         )
         index = np.flatnonzero(trusted)
-        name = _namer(dots)
         check_hand_determined(
             apply(self.matrix, plane[trusted]),
             sigma,

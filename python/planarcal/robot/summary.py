@@ -97,6 +97,9 @@ class Registration(Protocol):
     def dots(self) -> tuple[int, ...] | None: ...
 
     @property
+    def point_name(self) -> str: ...
+
+    @property
     def work_area_mm(self) -> F64 | None: ...
 
     @property
@@ -191,10 +194,11 @@ def _hand(frame: Registration) -> str:
 
 
 def _table(frame: Registration, lines: Sequence[int] | None) -> list[str]:
-    name_column = "dot" if frame.dots is not None else "touch"
+    name_column = frame.point_name if frame.dots is not None else "touch"
+    width = max(5, len(name_column))  # "corner" is a letter wider than the numbers
     line_head = "" if lines is None else f" {'line':>5}"
     rows = [
-        f"{name_column:>5}{line_head} {'board x':>9} {'board y':>9} {'robot x':>9} "
+        f"{name_column:>{width}}{line_head} {'board x':>9} {'board y':>9} {'robot x':>9} "
         f"{'robot y':>9} {'resid mm':>9} {'l-o-o mm':>9}"
     ]
     outliers = set(frame.outliers)
@@ -208,7 +212,8 @@ def _table(frame: Registration, lines: Sequence[int] | None) -> list[str]:
         label = frame.dots[i] if frame.dots is not None else i
         line = "" if lines is None else f" {lines[i]:5d}"
         rows.append(
-            f"{label:5d}{line} {bx:9.2f} {by:9.2f} {rx:9.2f} {ry:9.2f} {r:9.3f} {loo_text}{mark}"
+            f"{label:{width}d}{line} {bx:9.2f} {by:9.2f} {rx:9.2f} {ry:9.2f} {r:9.3f} "
+            f"{loo_text}{mark}"
         )
     rows.append(
         f"RMS {frame.rms_mm:.3f} mm, max {frame.max_mm:.3f} mm, "
@@ -239,7 +244,8 @@ def _verdict(frame: Registration) -> list[str]:
         )
         out.append(
             f"Outlier(s) {names}: leave-one-out error above {frame.outlier_threshold_mm:.3g} "
-            f"mm, a touch on the wrong dot or a mistyped coordinate; {action}. Touch them again."
+            f"mm, a touch on the wrong {frame.point_name} or a mistyped coordinate; {action}. "
+            "Touch them again."
         )
     out.append(_rating(frame))
     used = int(frame.used.sum())
@@ -269,7 +275,7 @@ def _rating(frame: Registration) -> str:
     if corner > loo and word != "excellent":
         return (
             f"{word.capitalize()}: {figures}. The touches fix the map poorly away from them: "
-            "touch dots nearer the board's corners, spread over the board."
+            f"touch {frame.point_name}s nearer the board's corners, spread over the board."
         )
     if word == "excellent":
         return f"Excellent: {figures}, about a robot's repeatability."
@@ -277,10 +283,18 @@ def _rating(frame: Registration) -> str:
         return f"Good: {figures}."
     if word == "usable":
         return (
-            f"Usable but coarse: {figures}. Check the tool centre point, touch each dot at its "
-            "centre, and add points spread across the board."
+            f"Usable but coarse: {figures}. Check the tool centre point, touch each "
+            f"{_touch_spot(frame.point_name)}, and add points spread across the board."
         )
     return (
-        f"Poor: {figures}. Check that each robot point pairs with its dot (the order, the "
-        "board's origin), that both are in mm, and the tool centre point; then touch again."
+        f"Poor: {figures}. Check that each robot point pairs with its {frame.point_name} (the "
+        "order, the board's origin), that both are in mm, and the tool centre point; then "
+        "touch again."
     )
+
+
+def _touch_spot(point_name: str) -> str:
+    """Where on a board point the tool must touch: a dot's centre, a corner's crossing."""
+    if point_name == "corner":
+        return "corner exactly where its squares meet"
+    return f"{point_name} at its centre"

@@ -1,8 +1,10 @@
 """The touch-point file of ``planarcal register``: a CSV with a header and one of three column
 sets (mm; z optional where shown):
 
-* ``dot,robot_x,robot_y[,robot_z]``: the index of the board dot the robot's tool touched
-  (k = row x cols + col, 0 the origin dot);
+* ``dot,robot_x,robot_y[,robot_z]`` (a circle grid) or ``corner,robot_x,robot_y[,robot_z]``
+  (a chessboard or a ChArUco board): the id of the board point the robot's tool touched,
+  0-based as ``board.world_points()`` numbers them (k = row x cols + col, 0 the origin
+  point);
 * ``board_x,board_y,robot_x,robot_y[,robot_z]``: the touched point's board position;
 * ``image_x,image_y,robot_x,robot_y``: N-point, where the camera saw (px) the part the robot
   placed.
@@ -12,7 +14,15 @@ names and numbers, header names in any case and in any order, blank lines, ``#``
 lines, and ``;`` or tab as the separator when the header uses it. Everything else is an
 ArgumentError naming the file and line: an unknown or missing column, a mix of column sets, a
 row of the wrong length, a field that is not a number (a decimal comma is named as such), a
-dot index that is not a whole number, no points at all."""
+point id that is not a whole number, no points at all.
+
+The id column names the kind of point the robot touched, and ``check_point_name`` holds it to
+the calibration's board: a ``dot`` column with a chessboard's calibration (or ``corner`` with a
+circle grid's) is refused, not read as the other. The ids mean the same on every board, but a
+header naming the other kind of point is the sign of a mix-up a fit cannot see (the CSV of
+another cell's board, or the calibration of another board: touches of a 14 x 10 circle grid
+read on a 9 x 6 chessboard give a poor fit, or a good one on the wrong points), and renaming
+one header word costs the user nothing when it is no mix-up."""
 
 from __future__ import annotations
 
@@ -29,11 +39,15 @@ from planarcal.bounded_read import read_regular_file
 from planarcal.errors import ArgumentError
 from planarcal.robot.transform_fit import F64
 
-Kind = Literal["dot", "board", "image"]
+Kind = Literal["dot", "corner", "board", "image"]
+
+# The kinds whose board side is a board point's id: the column is the board's point_name.
+ID_KINDS: tuple[Kind, ...] = ("dot", "corner")
 
 # The columns naming the board side of each kind, and the robot side they all share.
 BOARD_SIDE: dict[Kind, tuple[str, ...]] = {
     "dot": ("dot",),
+    "corner": ("corner",),
     "board": ("board_x", "board_y"),
     "image": ("image_x", "image_y"),
 }
@@ -42,6 +56,7 @@ ROBOT_Z = "robot_z"
 
 COLUMN_SETS = (
     "dot,robot_x,robot_y[,robot_z]",
+    "corner,robot_x,robot_y[,robot_z]",
     "board_x,board_y,robot_x,robot_y[,robot_z]",
     "image_x,image_y,robot_x,robot_y",
 )
@@ -50,8 +65,9 @@ COLUMN_SETS = (
 @dataclasses.dataclass(frozen=True)
 class TouchPoints:
     """The pairs a touch-point file holds: ``kind`` of board side, the board side itself
-    (``dots`` (N,) or ``board`` (N, 2) in mm or px), the robot points (N, 2) mm, their z (N,)
-    or None, and the file's line number of each pair (for messages)."""
+    (``dots`` (N,): the point ids of a ``dot`` or a ``corner`` column, the field named so for
+    every board; or ``board`` (N, 2) in mm or px), the robot points (N, 2) mm, their z (N,) or
+    None, the file's line number of each pair (for messages) and of its header."""
 
     kind: Kind
     dots: list[int] | None
@@ -59,13 +75,20 @@ class TouchPoints:
     robot: F64
     robot_z: F64 | None
     lines: tuple[int, ...]
+    header_line: int = 1
+
+    @property
+    def point_name(self) -> str | None:
+        """The kind of board point the id column names ("dot", "corner"), or None for
+        pairs given as positions."""
+        return self.kind if self.kind in ID_KINDS else None
 
     def describe(self, index: int) -> str:
-        """Pair ``index`` as a user finds it in the file: its dot (or its row from 0 and its
-        board side) and its line, as the register table names them."""
+        """Pair ``index`` as a user finds it in the file: its point ("dot 7", "corner 7"; or
+        its row from 0 and its board side) and its line, as the register table names them."""
         where = f"line {self.lines[index]}"
         if self.dots is not None:
-            return f"dot {self.dots[index]} ({where})"
+            return f"{self.kind} {self.dots[index]} ({where})"
         assert self.board is not None
         x, y = self.board[index]
         unit = "px" if self.kind == "image" else "mm"
@@ -120,17 +143,40 @@ def read_touch_csv(path: str | os.PathLike[str]) -> TouchPoints:
     z = np.asarray(values[ROBOT_Z]) if ROBOT_Z in values else None
     dots = None
     board = None
-    if kind == "dot":
+    if kind in ID_KINDS:
         dots = []
-        for v, number in zip(values["dot"], lines, strict=True):
+        for v, number in zip(values[kind], lines, strict=True):
             if not v.is_integer():
                 raise ArgumentError(
-                    f"{name} line {number}: dot {v:g} is not a dot index (a whole number)"
+                    f"{name} line {number}: {kind} {v:g} is not a {kind} index (a whole number)"
                 )
             dots.append(int(v))
     else:
         board = np.column_stack([values[c] for c in BOARD_SIDE[kind]])
-    return TouchPoints(kind, dots, board, robot, z, tuple(lines))
+    return TouchPoints(kind, dots, board, robot, z, tuple(lines), header_line)
+
+
+def check_point_name(
+    touches: TouchPoints,
+    point_name: str,
+    board_description: str,
+    path: str | os.PathLike[str],
+    calibration_path: str | os.PathLike[str] | None = None,
+) -> None:
+    """ArgumentError when the id column of ``touches`` (read from ``path``) names another
+    kind of point than the calibration's board has (``point_name``, its ``describe()`` as
+    ``board_description``): a ``dot`` column for a chessboard, a ``corner`` column for a
+    circle grid. Pairs given as positions name no kind and pass."""
+    named = touches.point_name
+    if named is None or named == point_name:
+        return
+    calibration = "the calibration" if calibration_path is None else str(calibration_path)
+    raise ArgumentError(
+        f"{Path(path)} line {touches.header_line}: its {named!r} column gives {named} ids, but "
+        f"the board of {calibration} ({board_description}) has {point_name}s, not {named}s: "
+        f"if the robot touched that board, name the column {point_name!r} (the same 0-based "
+        "ids, k = row x cols + col), else give the calibration of the board it touched"
+    )
 
 
 def _delimiter(header: str) -> str:
@@ -166,7 +212,7 @@ def _kind(header: list[str], name: str, line: int) -> tuple[Kind, list[str]]:
     kinds: list[Kind] = [k for k, cs in BOARD_SIDE.items() if any(c in header for c in cs)]
     if len(kinds) != 1:
         what = (
-            "no board side (dot, board_x/board_y or image_x/image_y)"
+            "no board side (dot, corner, board_x/board_y or image_x/image_y)"
             if not kinds
             else f"more than one board side ({' and '.join(kinds)} columns)"
         )

@@ -1,18 +1,21 @@
 """The board side of a registration's point pairs, in the calibration's board mm, from what a
-user can give: the dots the robot touched (their indices on the board), board positions in
-mm, or, N-point, the image positions (px) where the camera saw the part the robot placed,
-mapped through the calibration (their own 1-sigma then goes with them).
+user can give: the board points the robot touched by their ids (a circle grid's dots, a
+chessboard's or ChArUco board's corners), board positions in mm, or, N-point, the image
+positions (px) where the camera saw the part the robot placed, mapped through the calibration
+(their own 1-sigma then goes with them).
 
-A point's index is the board's own id, 0-based, as ``board.world_points()`` numbers them
-(a circle grid's dot k = row x cols + col, 0 the origin dot; a chessboard's or ChArUco
-board's inner corner likewise, OpenCV's ids); its position is the point in the calibration's
-world frame (the board's nominal coordinates times the printer-scale correction, if any).
+A point's id is the board's own, 0-based, as ``board.world_points()`` numbers them (a circle
+grid's dot k = row x cols + col, 0 the origin dot; a chessboard's or ChArUco board's inner
+corner likewise, OpenCV's ids); its position is the point in the calibration's world frame
+(the board's nominal coordinates times the printer-scale correction, if any).
 
 The calibration is anything with a board, a world scale and an image-to-world mapping
 (``PlaneCalibration``): the robot layer is above the calibration's and does not import it."""
 
 from __future__ import annotations
 
+import re
+from collections.abc import Iterable
 from typing import Any, Protocol
 
 import numpy as np
@@ -21,6 +24,35 @@ from numpy.typing import ArrayLike, NDArray
 from planarcal import arguments
 from planarcal.errors import ArgumentError, BoardError
 from planarcal.robot.transform_fit import F64
+
+DEFAULT_POINT_NAME = "dot"
+"""What a registration calls the board's points when nothing says: a circle grid's word, the
+board planarcal read first (``board.point_name`` says it for every board)."""
+
+
+def checked_point_name(point_name: Any) -> str:
+    """``point_name`` ("dot", "corner": a board's ``point_name``), checked: one lower-case
+    word, as messages put it before an id ("corner 12"); ArgumentError otherwise."""
+    if not isinstance(point_name, str) or not re.fullmatch(r"[a-z]+", point_name):
+        raise ArgumentError(
+            f"point_name must be one lower-case word, a board's point_name such as 'dot' or "
+            f"'corner', got {point_name!r}"
+        )
+    return point_name
+
+
+class PointIds(tuple[int, ...]):
+    """Board point ids (0-based, into ``board.world_points()``) that know what the board
+    calls its points (``point_name``): what ``plane_points`` gives for ids, so that the
+    registration fitted from them names a chessboard's pairs "corner k" and a circle grid's
+    "dot k" without another argument on the way."""
+
+    point_name: str
+
+    def __new__(cls, ids: Iterable[int], point_name: str) -> PointIds:
+        out = super().__new__(cls, ids)
+        out.point_name = checked_point_name(point_name)
+        return out
 
 
 class PlaneCalibration(Protocol):
@@ -44,8 +76,9 @@ def plane_points(
 ) -> tuple[F64, F64 | None, tuple[int, ...] | None]:
     """The board points (N, 2) in mm of exactly one of ``dots`` (N,), ``board_mm`` (N, 2) or
     ``image_px`` (N, 2), their own 1-sigma errors (N,) for image points (None for dots and
-    board mm, which are exact by definition of the board's frame), and the dot indices (N,)
-    when given as dots."""
+    board mm, which are exact by definition of the board's frame), and the point ids (N,)
+    when given as ids (``dots``: a circle grid's dots, a chessboard's corners), as PointIds
+    carrying the board's ``point_name``."""
     given = [
         name
         for name, v in (("dots", dots), ("board_mm", board_mm), ("image_px", image_px))
@@ -58,7 +91,9 @@ def plane_points(
         )
     if dots is not None:
         index = dot_indices(calibration, dots)
-        return dot_positions(calibration, index), None, tuple(index.tolist())
+        assert calibration.board is not None  # dot_indices checked
+        ids = PointIds(index.tolist(), calibration.board.point_name)
+        return dot_positions(calibration, index), None, ids
     if board_mm is not None:
         flat, lead = arguments.points("board_mm", board_mm)
         if len(lead) != 1:
@@ -95,22 +130,25 @@ def dot_positions(calibration: PlaneCalibration, dots: ArrayLike) -> F64:
 
 
 def dot_indices(calibration: PlaneCalibration, dots: ArrayLike) -> NDArray[np.int64]:
-    """The dot indices ``dots`` (N,) checked against the calibration's board: ArgumentError
-    for an index that is not a whole number or is off the board, BoardError for a calibration
-    that records no board."""
+    """The point ids ``dots`` (N,) checked against the calibration's board (its dots or
+    corners, 0-based into ``board.world_points()``): ArgumentError for an id that is not a
+    whole number or is off the board, naming the board's points by its ``point_name``;
+    BoardError for a calibration that records no board."""
     board = calibration.board
     if board is None:
         raise BoardError(
-            "this calibration records no board (made from bare points), so a dot's index has "
-            "no position: give the touch points as board mm instead"
+            "this calibration records no board (made from bare points), so a board point's "
+            "id (a dot's, a corner's) has no position: give the touch points as board mm "
+            "instead"
         )
+    name = checked_point_name(getattr(board, "point_name", DEFAULT_POINT_NAME))
     try:
         # As objects: an int array would turn True into dot 1.
         raw = dots if isinstance(dots, np.ndarray) else np.asarray(dots, dtype=object)
     except (TypeError, ValueError):
-        raise ArgumentError("dots must be a list of dot indices") from None
+        raise ArgumentError(f"dots must be a list of {name} indices") from None
     if raw.ndim != 1 or raw.size == 0:
-        raise ArgumentError(f"dots must be a list of dot indices (N,), got shape {raw.shape}")
+        raise ArgumentError(f"dots must be a list of {name} indices (N,), got shape {raw.shape}")
     n = board.n_points
     index = np.empty(len(raw), dtype=np.int64)
     for i, value in enumerate(raw.tolist()):
@@ -118,13 +156,20 @@ def dot_indices(calibration: PlaneCalibration, dots: ArrayLike) -> NDArray[np.in
         if isinstance(value, float | np.floating) and float(value).is_integer():
             whole, value = True, int(value)
         if not whole:
-            raise ArgumentError(f"dot {i}: {value!r} is not a dot index (a whole number)", i)
+            raise ArgumentError(f"{name} {i}: {value!r} is not a {name} index (a whole number)", i)
         if not 0 <= value < n:
             raise ArgumentError(
-                f"dot {i}: index {value} is off the board: a {board.cols} x {board.rows} board "
-                f"has {board.point_name}s 0 to {n - 1} (k = row x {board.cols} + column, 0 the "
-                f"origin {board.point_name})",
+                f"{name} {i}: index {value} is off the board: {_grid(board, name)} has "
+                f"{name}s 0 to {n - 1} (k = row x {board.cols} + column, 0 the origin {name})",
                 i,
             )
         index[i] = value
     return index
+
+
+def _grid(board: Any, point_name: str) -> str:
+    """The board's grid of points in words: "a 14 x 10 board" of dots; a chessboard's or a
+    ChArUco board's grid of corners named as such, not to be read as its squares."""
+    if point_name == DEFAULT_POINT_NAME:
+        return f"a {board.cols} x {board.rows} board"
+    return f"a board of {board.cols} x {board.rows} inner {point_name}s"
