@@ -71,8 +71,9 @@ class BoardDetection:
     image_size: tuple[int, int]
     """(width, height) of the image in pixels."""
     method: str
-    """Which finder succeeded: "lattice" (planarcal's own) or "opencv" (findCirclesGrid's
-    defaults)."""
+    """Which finder succeeded: for a circle grid "lattice" (planarcal's own) or "opencv"
+    (findCirclesGrid's defaults); for a chessboard the OpenCV finder that found its corners
+    before planarcal refined them; for a ChArUco board "charuco"."""
     residual_rms_px: float
     """RMS distance of the points from the best homography through them (px)."""
     ids: NDArray[np.intp] = dataclasses.field(default_factory=lambda: np.zeros(0, np.intp))
@@ -84,10 +85,12 @@ class BoardDetection:
     """A circle grid's dots' equivalent diameters in pixels (from their ink area); empty for
     other boards."""
     refined: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
-    """Per dot: True where the centre was refined from the grey levels, False where the dot
-    could not be measured and keeps its blob's centre (coarser, about 0.1-0.5 px)."""
+    """Per point found (matching ids): True where it was refined from the grey levels, False
+    where it could not be and keeps a coarser position (a dot its blob's centre, about 0.1-0.5
+    px; a ChArUco corner its markers' prediction). A partial view leaves such points out."""
     enlarged: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
-    """Per dot: True for dots clearly larger than their neighbours (a marker, fiducials)."""
+    """Per dot found: True for dots clearly larger than their neighbours (a marker,
+    fiducials); empty for other boards."""
     orientation: Orientation = "ambiguous"
     """"marker": dot 0 is the origin marker; "pattern": the grid itself can be read only one
     way (an asymmetric grid with an odd number of rows); "ambiguous": neither, and
