@@ -124,8 +124,9 @@ def test_touches_on_one_line_are_refused_naming_corners(charuco_cal: Calibration
     board = charuco_cal.board
     assert board is not None
     row = [0, 2, board.cols - 1]  # the first row of corners
-    with pytest.raises(pc.RegistrationError, match=rf"corner 0 and corner {board.cols - 1}"):
+    with pytest.raises(pc.RegistrationError, match=rf"corner 0 and corner {board.cols - 1}") as e:
         charuco_cal.register(_robot(board.world_points()[row]), dots=row)
+    assert "touch at least one corner off the line" in str(e.value)
 
 
 @pytest.mark.parametrize("kind", ["chessboard", "charuco"])
@@ -185,6 +186,8 @@ def test_the_saved_registration_keeps_its_fields(tmp_path: Path, corner_cal: Cal
     assert set(stored) == set(RobotFrame.fit(plane, _robot(plane), dots=ids).to_dict())
     loaded = Calibration.load(saved)
     assert loaded.robot_frame is not None and loaded.robot_frame.dots == tuple(ids)
+    # The loaded file names them by its board: corners.
+    assert loaded.robot_frame.pair_name(0) == f"corner {ids[0]}"
     np.testing.assert_allclose(
         loaded.robot_frame.plane_to_robot, registered.robot_frame.plane_to_robot, atol=1e-9
     )

@@ -349,7 +349,9 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
     fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
     point_ids = _check_on_board(board, world, world_scale, source)
     _check_ids(points.get("ids"), point_ids, board, version, source)
-    robot_frame = _robot_frame(data.get("robot_frame"), source)
+    robot_frame = _robot_frame(
+        data.get("robot_frame"), source, None if board is None else board.point_name
+    )
     return FileContents(
         world,
         image,
@@ -768,18 +770,19 @@ def _json_type_is(value: Any, want: str) -> bool:
     return isinstance(value, str)
 
 
-def _robot_frame(robot_data: Any, source: str) -> RobotFrame | None:
+def _robot_frame(robot_data: Any, source: str, point_name: str | None) -> RobotFrame | None:
     """The registration to the robot, or None: refitted from its pairs by RobotFrame.from_dict,
     whose check of the stored transform lets each entry differ by 1e-6 of the largest (with a
     250 mm translation, 2.5e-4 in the rotation's entries: 0.075 mm 300 mm from the origin).
     Here the stored transform must put the pairs' board points where the refitted one does to
     ROBOT_TOLERANCE_MM: a pair edited by a fraction of a millimetre would otherwise move every
-    robot position silently."""
+    robot position silently. ``point_name``: what the board calls its points ("dot",
+    "corner"), for the registration's table and messages (the file does not store it)."""
     if robot_data is None:
         return None
     _check_robot_values(robot_data, source)
     where = f"{source}: robot_frame (its registration to the robot)"
-    frame = RobotFrame.from_dict(robot_data, where)
+    frame = RobotFrame.from_dict(robot_data, where, point_name=point_name)
     stored = np.asarray(robot_data["plane_to_robot"], dtype=np.float64)  # checked 3 x 3
     drift = float(np.abs(apply(stored, frame.plane_mm) - frame.to_robot(frame.plane_mm)).max())
     if not drift <= ROBOT_TOLERANCE_MM:

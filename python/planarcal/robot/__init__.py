@@ -8,10 +8,11 @@ do not) and the hand a user can state instead, ``outliers`` the leave-one-out er
 once, in O(N)) and the touches they name (a bounded search),
 ``plane_height`` the plane's height and tilt from the robot's z, ``summary`` the fit in words,
 ``prediction_error`` the fitted map's own 1-sigma at any board point. Around the fit:
-``touch_pairs`` turns dot indices, board mm or N-point image px into board points through a
-calibration, ``output_frame`` maps board positions (and their 1-sigma and angles) into the
-robot's frame for ``Calibration.image_to_world(frame=...)``, the Tracker and ``locate``,
-``touch_csv`` reads the touch-point CSV and ``register_command`` is ``planarcal register``.
+``touch_pairs`` turns point ids (dots, corners), board mm or N-point image px into board
+points through a calibration, ``output_frame`` maps board positions (and their 1-sigma and
+angles) into the robot's frame for ``Calibration.image_to_world(frame=...)``, the Tracker and
+``locate``, ``touch_csv`` reads the touch-point CSV and ``register_command`` is ``planarcal
+register``.
 """
 
 from planarcal.robot.handedness import HANDEDNESS, Handedness

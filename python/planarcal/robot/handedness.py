@@ -81,10 +81,12 @@ def check_hand_determined(
     model: Model,
     hand_given: bool,
     name: Callable[[int], str],
+    point_name: str = "dot",
 ) -> None:
     """RegistrationError when the touches leave the hand free under the touch noise
     ``sigma_mm`` (per coordinate) and it was not given (or the model is affine, whose hand is
-    its points'): naming the two touches at the ends of their line (``name`` of an index).
+    its points'): naming the two touches at the ends of their line (``name`` of an index) and
+    the board's points by ``point_name`` ("dot", "corner").
     ``mapped_mm``: their board points mapped by the fit, in the robot's mm like the noise (a
     similarity's scale or an affine's stretch changes their distances from the line)."""
     if hand_given and model != "affine":
@@ -103,6 +105,6 @@ def check_hand_determined(
         f"the touch points lie too near one line for their noise to show whether the robot "
         f"frame is the board's mirror image: their distances from it come to {rss:.3g} mm "
         f"(root-sum-square), under {MIN_HAND_Z:g} x the touch noise of {sigma_mm:.3g} mm, and "
-        "a part off the line could be placed at its mirror image; touch at least one dot off "
-        f"the line through {name(first)} and {name(last)}, {fix}"
+        f"a part off the line could be placed at its mirror image; touch at least one "
+        f"{point_name} off the line through {name(first)} and {name(last)}, {fix}"
     )

@@ -163,7 +163,7 @@ class RobotFrame:
         check_geometry(plane, robot, model)
         try:
             fitted = _Fitted.of(plane, robot, model, mirrored, threshold_given, drop_outliers)
-            fitted.check_hand(plane, plane_std, mirrored, _namer(dot_index, name))
+            fitted.check_hand(plane, plane_std, mirrored, _namer(dot_index, name), name)
         except (np.linalg.LinAlgError, FloatingPointError, OverflowError) as e:
             # A safeguard: _pairs bounds the coordinates, so this is not a path.
             raise RegistrationError(f"the point pairs cannot be fitted ({e})") from None
@@ -575,9 +575,11 @@ class _Fitted:
         plane_std: F64 | None,
         mirrored: bool | None,
         name: Callable[[int], str],
+        point_name: str,
     ) -> None:
         """RegistrationError unless the touches not named outliers fix the hand (or it was
-        given), or when an affine fit's hand is not the one given."""
+        given), or when an affine fit's hand is not the one given; the board's points called
+        ``point_name``."""
         trusted = self.trusted
         sigma = noise_sigma_mm(
             self.residual_xy[trusted], self.model, None if plane_std is None else plane_std[trusted]
@@ -589,6 +591,7 @@ class _Fitted:
             self.model,
             mirrored is not None,
             lambda k: name(int(index[k])),
+            point_name,
         )
         if self.model == "affine" and mirrored is not None and self.reflected != mirrored:
             raise RegistrationError(
