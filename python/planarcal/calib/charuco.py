@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from planarcal import arguments
 from planarcal.calib.board_ink import BoardInk, cell_runs
+from planarcal.calib.square_corners import SquareCorners
 from planarcal.errors import BoardError
 
 F64 = NDArray[np.float64]
@@ -85,7 +86,7 @@ def _dictionary(value: int) -> Any:
 
 
 @dataclasses.dataclass(frozen=True)
-class CharucoBoard:
+class CharucoBoard(SquareCorners):
     """OpenCV's ChArUco board (see the module): `squares_x` x `squares_y` squares of
     `square` mm, markers of `marker` mm from `dictionary`; `legacy` None (either layout),
     True (OpenCV before 4.6) or False (4.6 and later)."""
@@ -99,6 +100,7 @@ class CharucoBoard:
 
     kind: ClassVar[str] = "charuco"
     point_name: ClassVar[str] = "corner"
+    first_corner_squares: ClassVar[int] = 1  # OpenCV's origin: the board's outer corner
 
     def __post_init__(self) -> None:
         for name in ("squares_x", "squares_y"):
@@ -133,15 +135,6 @@ class CharucoBoard:
             )
 
     @property
-    def pitch(self) -> float:
-        """Distance between neighbouring corners in mm (the square's side)."""
-        return float(self.square)
-
-    @property
-    def neighbour_distance(self) -> float:
-        return float(self.square)
-
-    @property
     def cols(self) -> int:
         """Inner corners along a row."""
         return self.squares_x - 1
@@ -150,10 +143,6 @@ class CharucoBoard:
     def rows(self) -> int:
         """Inner corners down a column."""
         return self.squares_y - 1
-
-    @property
-    def n_points(self) -> int:
-        return self.cols * self.rows
 
     @property
     def n_markers(self) -> int:
@@ -184,11 +173,6 @@ class CharucoBoard:
 
     def opencv_dictionary(self) -> Any:
         return _dictionary(dictionary_id(self.dictionary))
-
-    def world_points(self) -> F64:
-        """The inner corners in mm, (rows * cols, 2), OpenCV's ids and positions."""
-        r, c = np.divmod(np.arange(self.n_points), self.cols)
-        return np.column_stack([(c + 1) * float(self.square), (r + 1) * float(self.square)])
 
     def marker_corners(self, legacy: bool | None = None) -> F64:
         """Each marker's four corners in mm, (n_markers, 4, 2), in id order, OpenCV's

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from planarcal import arguments
 from planarcal.calib.board_ink import BoardInk
+from planarcal.calib.square_corners import SquareCorners
 from planarcal.errors import BoardError
 
 F64 = NDArray[np.float64]
@@ -42,7 +43,7 @@ corner), large enough to be read at a few pixels across."""
 
 
 @dataclasses.dataclass(frozen=True)
-class ChessboardBoard:
+class ChessboardBoard(SquareCorners):
     """A chessboard of `cols` x `rows` inner corners, squares `square` mm wide; with
     ``origin_marker=True`` three marker dots fix its orientation (see the module)."""
 
@@ -79,27 +80,9 @@ class ChessboardBoard:
             )
 
     @property
-    def pitch(self) -> float:
-        """Distance between neighbouring corners in mm (the square's side)."""
-        return float(self.square)
-
-    @property
-    def neighbour_distance(self) -> float:
-        return float(self.square)
-
-    @property
-    def n_points(self) -> int:
-        return self.cols * self.rows
-
-    @property
     def orientation_fixed(self) -> bool:
         """Whether the printed board fixes its own reading (its marker)."""
         return bool(self.origin_marker)
-
-    def world_points(self) -> F64:
-        """The inner corners in mm, (rows * cols, 2), row-major from the top-left one."""
-        r, c = np.divmod(np.arange(self.n_points), self.cols)
-        return np.column_stack([c * float(self.square), r * float(self.square)])
 
     @property
     def extent(self) -> tuple[float, float]:
