@@ -40,7 +40,7 @@ import argparse
 import dataclasses
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -51,8 +51,12 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests" / "calib"))
 
-from reporting import cpu_model, load_average, table_lines  # noqa: E402
-from test_charuco_renders import render_charuco, view_homography  # noqa: E402
+from reporting import Output, cpu_model, load_average  # noqa: E402
+from test_charuco_renders import (  # noqa: E402
+    local_residuals,
+    render_charuco,
+    view_homography,
+)
 
 from planarcal.calib.charuco import CharucoBoard  # noqa: E402
 from planarcal.calib.detect_charuco import detect_charuco  # noqa: E402
@@ -68,21 +72,6 @@ REAL_SETS = {
     "charuco-odri-apriltag16h5-5x7": CharucoBoard(5, 7, 40, 30, "DICT_APRILTAG_16h5"),
     "charuco-rlav440-4x4-20x20": CharucoBoard(20, 20, 4, 3.2, "DICT_4X4_1000"),
 }
-
-
-@dataclasses.dataclass
-class Output:
-    markdown: bool
-
-    def heading(self, text: str) -> None:
-        print(f"\n### {text}\n" if self.markdown else f"\n{text}\n{'=' * len(text)}")
-
-    def note(self, text: str) -> None:
-        print(f"\n{text}" if self.markdown else text)
-
-    def table(self, header: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
-        right = [False] + [True] * (len(header) - 1)
-        print("\n".join(table_lines(header, right, rows, self.markdown)))
 
 
 @dataclasses.dataclass
@@ -113,29 +102,6 @@ def opencv_corners(image: U8, board: CharucoBoard, legacy: bool) -> Found:
     return Found(ids.ravel()[order].astype(np.intp), corners.reshape(-1, 2)[order], seconds)
 
 
-def local_residuals(found: Found, board: CharucoBoard) -> tuple[F64, F64]:
-    """Each corner's distance from the homography of its found neighbours within two
-    squares (at least five, itself left out), in px and in squares (NaN where too few)."""
-    grid = board.world_points() / board.square
-    ids, pts = found.ids, found.points
-    px = np.full(len(ids), np.nan)
-    squares = np.full(len(ids), np.nan)
-    for n, k in enumerate(ids):
-        d = np.max(np.abs(grid[ids] - grid[k]), axis=1)
-        near = (d <= 2.01) & (d > 0)
-        if near.sum() < 5:
-            continue
-        h, _ = cv2.findHomography(grid[ids][near], pts[near], 0)
-        if h is None:
-            continue
-        predicted = cv2.perspectiveTransform(grid[k].reshape(1, 1, 2), h).reshape(2)
-        unit = cv2.perspectiveTransform((grid[k] + [[1, 0], [0, 1]]).reshape(-1, 1, 2), h)
-        square_px = np.linalg.norm(unit.reshape(-1, 2) - predicted, axis=1).min()
-        px[n] = np.linalg.norm(predicted - pts[n])
-        squares[n] = px[n] / square_px
-    return px, squares
-
-
 def rms(values: F64) -> float:
     values = values[np.isfinite(values)]
     return float(np.sqrt(np.mean(values**2))) if len(values) else float("nan")
@@ -162,7 +128,7 @@ def real_section(out: Output) -> None:
             cv_total += len(cv_found.ids)
             missing = len(np.setdiff1d(cv_found.ids, ours.ids))
             fewer += len(ours.ids) < len(cv_found.ids)
-            _, off = local_residuals(ours, board)
+            _, off = local_residuals(board, ours.ids, ours.points)
             bad = int(np.count_nonzero(off > 1 / 3))
             wrong += bad
             t_ours.append(ours.seconds)
@@ -171,8 +137,8 @@ def real_section(out: Output) -> None:
             if len(common) >= 9:
                 pick = Found(common, ours.points[np.isin(ours.ids, common)], 0)
                 pick_cv = Found(common, cv_found.points[np.isin(cv_found.ids, common)], 0)
-                res_ours.append(local_residuals(pick, board)[0])
-                res_cv.append(local_residuals(pick_cv, board)[0])
+                res_ours.append(local_residuals(board, pick.ids, pick.points)[0])
+                res_cv.append(local_residuals(board, pick_cv.ids, pick_cv.points)[0])
             detail.append(
                 [
                     f"{name}/{photo.name}",

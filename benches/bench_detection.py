@@ -84,7 +84,7 @@ from planarcal.errors import BoardError, BoardMismatchError, BoardNotFoundError
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from chessboard_section import chessboard_section
-from reporting import cpu_model, load_average, table_lines
+from reporting import Output, cpu_model, load_average
 
 F64 = NDArray[np.float64]
 U8 = NDArray[np.uint8]
@@ -99,24 +99,6 @@ LIMIT_720P, LIMIT_4K, LIMIT_TYPICAL = 2.0, 8.0, 0.2
 
 # ------------------------------------------------------------------------------------------
 # Output
-
-
-@dataclasses.dataclass
-class Output:
-    """Prints headings, tables and notes as plain text or Markdown."""
-
-    markdown: bool
-
-    def heading(self, text: str) -> None:
-        print(f"\n### {text}\n" if self.markdown else f"\n{text}\n{'=' * len(text)}")
-
-    def note(self, text: str) -> None:
-        print(f"\n{text}" if self.markdown else text)
-
-    def table(self, header: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
-        """The first column (names) left-aligned, the others (figures) right-aligned."""
-        right = [False] + [True] * (len(header) - 1)
-        print("\n".join(table_lines(header, right, rows, self.markdown)))
 
 
 def progress(text: str) -> None:

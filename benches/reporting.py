@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import platform
 from collections.abc import Sequence
@@ -48,3 +49,21 @@ def table_lines(
         return " | ".join(padded).rstrip()
 
     return [line(headers), "-+-".join("-" * w for w in widths), *(line(r) for r in rows)]
+
+
+@dataclasses.dataclass
+class Output:
+    """Prints headings, tables and notes as plain text or Markdown."""
+
+    markdown: bool
+
+    def heading(self, text: str) -> None:
+        print(f"\n### {text}\n" if self.markdown else f"\n{text}\n{'=' * len(text)}")
+
+    def note(self, text: str) -> None:
+        print(f"\n{text}" if self.markdown else text)
+
+    def table(self, header: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
+        """The first column (names) left-aligned, the others (figures) right-aligned."""
+        right = [False] + [True] * (len(header) - 1)
+        print("\n".join(table_lines(header, right, rows, self.markdown)))

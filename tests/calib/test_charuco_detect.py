@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
-from test_charuco_renders import render_charuco, view_homography
+from test_charuco_renders import local_residuals, render_charuco, view_homography
 
 import planarcal
 from conftest import SHARED
@@ -40,26 +40,11 @@ def _opencv(
 
 
 def _wrong_ids(detection: BoardDetection) -> list[int]:
-    """Corners that are not where their found neighbours (within two squares, at least five
-    not on one line) put them, by more than a third of a square: a wrong id."""
-    board = detection.board
-    grid = board.world_points() / board.square
-    ids, pts = detection.ids, detection.image_points
-    wrong = []
-    for n, k in enumerate(ids):
-        d = np.max(np.abs(grid[ids] - grid[k]), axis=1)
-        near = (d <= 2.01) & (d > 0)
-        if near.sum() < 5:
-            continue
-        h, _ = cv2.findHomography(grid[ids][near], pts[near], 0)
-        if h is None:
-            continue
-        predicted = cv2.perspectiveTransform(grid[k].reshape(1, 1, 2), h).reshape(2)
-        unit = cv2.perspectiveTransform((grid[k] + [[1, 0], [0, 1]]).reshape(-1, 1, 2), h)
-        square_px = np.linalg.norm(unit.reshape(-1, 2) - predicted, axis=1).min()
-        if np.linalg.norm(predicted - pts[n]) > square_px / 3:
-            wrong.append(int(k))
-    return wrong
+    """Corners more than a third of a square from where their found neighbours (within two
+    squares, at least five) put them: a wrong id."""
+    assert isinstance(detection.board, CharucoBoard)
+    _, squares = local_residuals(detection.board, detection.ids, detection.image_points)
+    return [int(k) for k, q in zip(detection.ids, squares, strict=True) if q > 1 / 3]
 
 
 SCENES = [

@@ -115,3 +115,26 @@ def test_render_truth_matches_opencv_chessboard_corners() -> None:
     corners = corners.reshape(-1, 2)
     d = np.linalg.norm(corners[:, None, :] - truth[None, :, :], axis=2).min(axis=1)
     assert np.sqrt(np.mean(d**2)) < 0.1
+
+
+def local_residuals(board: CharucoBoard, ids: NDArray[np.intp], points: F64) -> tuple[F64, F64]:
+    """Each corner's distance from the homography of its found neighbours within two
+    squares (at least five, itself left out), in px and in squares (NaN where too few): a
+    corner more than a third of a square off has a wrong id."""
+    grid = board.world_points() / board.square
+    px = np.full(len(ids), np.nan)
+    squares = np.full(len(ids), np.nan)
+    for n, k in enumerate(ids):
+        d = np.max(np.abs(grid[ids] - grid[k]), axis=1)
+        near = (d <= 2.01) & (d > 0)
+        if near.sum() < 5:
+            continue
+        h, _ = cv2.findHomography(grid[ids][near], points[near], 0)
+        if h is None:
+            continue
+        predicted = cv2.perspectiveTransform(grid[k].reshape(1, 1, 2), h).reshape(2)
+        unit = cv2.perspectiveTransform((grid[k] + [[1, 0], [0, 1]]).reshape(-1, 1, 2), h)
+        square_px = np.linalg.norm(unit.reshape(-1, 2) - predicted, axis=1).min()
+        px[n] = np.linalg.norm(predicted - points[n])
+        squares[n] = px[n] / square_px
+    return px, squares
