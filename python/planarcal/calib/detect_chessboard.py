@@ -390,7 +390,7 @@ def _finish(
         raise _RefusedError("too few corners")
     axes = _grid_axes(grid.points)
     flat = grid.points.reshape(-1, 2)
-    refined = refine_corners(grey, flat, axes.reshape(-1, 2, 2))
+    refined = refine_corners(grey, flat, axes.reshape(-1, 2, 2), dotted=board.origin_marker)
     points = refined.points.reshape(rows_g, cols_g, 2)
     levels = _cell_levels(grey, points)
     reading = _marker_reading(points, levels, board)
@@ -405,6 +405,11 @@ def _finish(
         if {rows_g, cols_g} != {board.rows, board.cols}:
             raise _RefusedError(f"a grid of {cols_g} x {rows_g} corners")
         reading = _plain_reading(points, levels, board, turned)
+    elif not board.origin_marker:
+        # Marker dots on a board described without them: refined again with windows that
+        # keep clear of the dots (a wide window over a dot moves its corner by 0.1 px).
+        refined = refine_corners(grey, flat, axes.reshape(-1, 2, 2), dotted=True)
+        points = refined.points.reshape(rows_g, cols_g, 2)
     return _detection(grey, grid, points, refined, reading, board)
 
 
@@ -711,7 +716,11 @@ def _flag_strays(known: dict[tuple[int, int], tuple[F64, bool]]) -> None:
 
 
 def _x_corners(
-    grey: NDArray[np.uint8] | NDArray[np.float32], predicted: F64, axes: F64, reference: float
+    grey: NDArray[np.uint8] | NDArray[np.float32],
+    predicted: F64,
+    axes: F64,
+    reference: float,
+    dotted: bool,
 ) -> tuple[F64, NDArray[np.bool_]]:
     """Refine at predicted positions; True where an X-corner of the board's contrast is there
     (within a quarter step of the prediction)."""
@@ -729,7 +738,7 @@ def _x_corners(
         idx = idx[_x_shaped(grey, predicted[idx], axes[idx], reference)]
     if idx.size == 0:
         return points, found
-    res = refine_corners(grey, predicted[idx], axes[idx])
+    res = refine_corners(grey, predicted[idx], axes[idx], dotted=dotted)
     step = np.min(np.linalg.norm(axes[idx], axis=2), axis=1)
     moved = np.hypot(*(res.points - predicted[idx]).T)
     ok = res.refined & (moved < 0.25 * step) & (res.contrast > 0.4 * reference)
@@ -787,7 +796,8 @@ def _grow(
         if not frontier:
             return
         predicted, axes = _local_prediction(known, frontier)
-        points, found = _x_corners(grey, predicted, axes, reference)
+        # Growth follows a marker read: its dots stand in the squares.
+        points, found = _x_corners(grey, predicted, axes, reference, True)
         added = False
         for k, key in enumerate(frontier):
             if np.isfinite(predicted[k]).all():
@@ -820,7 +830,7 @@ def _check_no_continuation(
     axes = np.concatenate(
         [np.stack([np.gradient(p, axis=0), step], axis=1) for p, step in edges.values()]
     )
-    _, found = _x_corners(grey, predicted, axes, reference)
+    _, found = _x_corners(grey, predicted, axes, reference, board.origin_marker)
     start = 0
     for name, (edge, _) in edges.items():
         hits = int(found[start : start + len(edge)].sum())
