@@ -22,7 +22,12 @@ a 12 px one): 0.65 of the distance to the nearest other corner (along either gri
 diagonal, so the neighbours' corners and blurred edges stay out), or 0.42 of the shorter step
 on a board with marker dots (whose dots stand 0.54 of a step from the nearest corner), at
 most MAX_RADIUS_PX (a window over which a lens's curvature of the edges stays small).
-Measured against cornerSubPix and findChessboardCornersSB in benches/bench_detection.py.
+The fit runs in two passes: in a small window (at most START_RADIUS_PX) from the start, then
+in the wide window over the pixels near the edges only (the flat rest tells nothing of where
+they run), so a wide window costs little more than a small one. A corner is kept only where
+the model also matches the image in the small window (a wide window fits the X about a corner
+hidden under a glare spot). Measured against cornerSubPix and findChessboardCornersSB in
+benches/bench_detection.py.
 """
 
 from __future__ import annotations
@@ -43,12 +48,16 @@ MAX_RADIUS_PX = 24.0
 enough that a lens's curvature of the edges inside it (a straight-edged model's bias grows
 with the window's area) stays below 0.05 px in a strongly barrelled synth render (0.08 px at
 30 px)."""
+START_RADIUS_PX = 10.0
+"""The first pass's largest window half-width (px)."""
 RADIUS_FRACTION = 0.65
 """A window's half-width in distances to the nearest other corner on a plain board."""
 DOTTED_RADIUS_FRACTION = 0.42
 """A window's half-width in grid steps on a board with marker dots in its squares."""
 N_PARAMS = 9
 MIN_SIGMA_PX = 0.2
+MAX_SIGMA_FRACTION = 0.3
+"""The largest blur, in window half-widths."""
 ITERATIONS = 30
 """The most Levenberg-Marquardt steps per corner (most converge in 5-10; a converged corner
 takes no more)."""
@@ -118,13 +127,6 @@ def refine_corners(
         empty = np.zeros(0)
         return RefinedCorners(pts.copy(), np.zeros(0, bool), empty, empty, empty)
     height, width = grey.shape[:2]
-    r_max = math.ceil(float(rad.max()) + 1.0)
-    offs = np.arange(-r_max, r_max + 1, dtype=np.float64)
-    grid_y, grid_x = np.meshgrid(offs, offs, indexing="ij")
-    # Only the window's disc: the weights are zero outside it.
-    disc = grid_x**2 + grid_y**2 <= (r_max - 0.5) ** 2
-    ox: F64 = grid_x[disc]
-    oy: F64 = grid_y[disc]
 
     # Parameters: x, y, angle of edge 1's normal, angle of edge 2's normal, sigma, m, a.
     # The light's slope (7, 8) starts flat.
@@ -137,21 +139,32 @@ def refine_corners(
     start = pts.copy()
     first = True
     # Two passes, the second with the windows re-read about the first's estimates (the
-    # window follows the corner; within a pass it stays put, so costs compare).
-    for steps in (max(1, iterations - iterations // 3), max(1, iterations // 3)):
+    # window follows the corner; within a pass it stays put, so costs compare). The first,
+    # in a window of at most START_RADIUS_PX, takes the corner most of the way at a
+    # quarter of the cost; the second, in the whole window, only the last hundredths.
+    passes = (
+        (np.minimum(rad, START_RADIUS_PX), max(1, iterations - iterations // 3)),
+        (rad, max(1, iterations // 6)),
+    )
+    for pass_rad, steps in passes:
+        ox, oy = _disc(float(pass_rad.max()))
         centre = np.rint(theta[:, :2])
         values, inside = _window(grey, centre, ox, oy, width, height)
         px = centre[:, :1] + ox[None, :]
         py = centre[:, 1:] + oy[None, :]
+        # How much of the window lies in the image (before the band below narrows it).
+        coverage = inside.mean(axis=1)
+        if not first:
+            values, px, py, inside = _near_edges(values, px, py, inside, theta)
         if first:
             # Starting levels: the mean, and the contrast by the edges' sign pattern.
-            w0 = _weights(px, py, theta[:, :2], rad, inside)
+            w0 = _weights(px, py, theta[:, :2], pass_rad, inside)
             s = np.sign(_dist(px, py, theta, 2)) * np.sign(_dist(px, py, theta, 3))
             sw = np.maximum(w0.sum(axis=1), 1e-12)
             theta[:, 5] = (w0 * values).sum(axis=1) / sw
             theta[:, 6] = (w0 * (values - theta[:, 5:6]) * s).sum(axis=1) / sw
             first = False
-        theta = _levenberg_marquardt(theta, values, px, py, inside, rad, steps)
+        theta = _levenberg_marquardt(theta, values, px, py, inside, pass_rad, steps)
     w = _weights(px, py, theta[:, :2], rad, inside)
     resid = _residual_jacobian(values, px, py, theta, jacobian=False)[0]
     final_cost = (w * resid**2).sum(axis=1)
@@ -164,10 +177,59 @@ def refine_corners(
         & (shift <= MAX_SHIFT * rad)
         & (edge_angle > 0.2)  # two edges that cross, not one edge
         & (residual < 0.35)
-        & (inside.sum(axis=1) >= 0.6 * inside.shape[1])
+        & (coverage >= 0.6)
+        & (_inner_residual(grey, theta, rad) < 0.35)
     )
     out = np.where(ok[:, None], theta[:, :2], start)
     return RefinedCorners(out, ok, contrast, np.abs(theta[:, 4]), residual)
+
+
+def _inner_residual(grey: NDArray[np.float32] | NDArray[np.uint8], theta: F64, rad: F64) -> F64:
+    """The fitted model's weighted RMS residual over the contrast in the first pass's small
+    window about the corner: a wide window fits the X about a corner hidden under a glare
+    spot or a finger; the corner itself must be seen."""
+    inner = np.minimum(rad, START_RADIUS_PX)
+    ox, oy = _disc(float(inner.max()))
+    centre = np.rint(theta[:, :2])
+    height, width = grey.shape[:2]
+    values, inside = _window(grey, centre, ox, oy, width, height)
+    px = centre[:, :1] + ox[None, :]
+    py = centre[:, 1:] + oy[None, :]
+    w = _weights(px, py, theta[:, :2], inner, inside)
+    resid = _residual_jacobian(values, px, py, theta, jacobian=False)[0]
+    cost = (w * resid**2).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-12)
+    return np.asarray(np.sqrt(cost) / np.maximum(2.0 * np.abs(theta[:, 6]), 1e-9), np.float64)
+
+
+def _near_edges(
+    values: F64, px: F64, py: F64, inside: NDArray[np.bool_], theta: F64
+) -> tuple[F64, F64, F64, NDArray[np.bool_]]:
+    """Only the pixels within 3 blurs + 4 px of either edge: the rest, flat, says nothing
+    of where the edges run (a wide window's flat part is most of its cost). The band is
+    point-symmetric about the current corner, so it adds no bias. Each corner's band is
+    packed to the left; the padding lies outside (``inside`` False)."""
+    reach = 3.0 * np.maximum(np.abs(theta[:, 4:5]), 0.5) + 4.0
+    band = (np.abs(_dist(px, py, theta, 2)) <= reach) | (np.abs(_dist(px, py, theta, 3)) <= reach)
+    band &= inside
+    keep = max(int(band.sum(axis=1).max()), 1)
+    order = np.argsort(~band, axis=1, kind="stable")[:, :keep]
+    pick = np.take_along_axis
+    return (
+        pick(values, order, axis=1),
+        pick(px, order, axis=1),
+        pick(py, order, axis=1),
+        pick(band, order, axis=1),
+    )
+
+
+def _disc(radius: float) -> tuple[F64, F64]:
+    """The pixel offsets (x, y) of a window of half-width `radius`: only its disc, since the
+    weights are zero outside it."""
+    r_max = math.ceil(radius + 1.0)
+    offs = np.arange(-r_max, r_max + 1, dtype=np.float64)
+    grid_y, grid_x = np.meshgrid(offs, offs, indexing="ij")
+    disc = grid_x**2 + grid_y**2 <= (r_max - 0.5) ** 2
+    return grid_x[disc], grid_y[disc]
 
 
 def _levenberg_marquardt(
@@ -195,7 +257,10 @@ def _levenberg_marquardt(
         damped = hess[a] + (lam[a, None, None] * (diag[:, :, None] + 1e-9)) * eye
         step = _solve(damped, -grad[a])
         trial = theta[a] + step
-        trial[:, 4] = np.clip(np.abs(trial[:, 4]), MIN_SIGMA_PX, np.maximum(rad[a], 1.0))
+        # A blur of more than MAX_SIGMA_FRACTION of the window leaves no corner to find in
+        # it (the model flattens into a saddle that fits any smooth patch, a glare spot).
+        top = np.maximum(MAX_SIGMA_FRACTION * rad[a], 2.0 * MIN_SIGMA_PX)
+        trial[:, 4] = np.clip(np.abs(trial[:, 4]), MIN_SIGMA_PX, top)
         t_resid, t_jac = _residual_jacobian(values[a], px[a], py[a], trial)
         t_cost = (w[a] * t_resid**2).sum(axis=1)
         better = np.isfinite(t_cost) & (t_cost <= cost[a])
