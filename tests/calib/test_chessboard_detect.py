@@ -334,3 +334,42 @@ def test_real_photo_found_wherever_opencv_finds_it(photo: tuple[Path, tuple[int,
     assert np.max(gap[det.refined]) < 0.2 * det.pitch_px
     assert det.refined.mean() > 0.8
     assert det.orientation in ("pattern", "ambiguous")
+
+
+def neighbour_residuals(world: F64, image: F64, k: int = 8) -> F64:
+    """Each corner's distance from where the homography through its k nearest neighbours
+    (on the board, itself left out) puts it: the scatter of corners about a locally plane
+    board, measurable without the truth."""
+    out = np.zeros(len(world))
+    for i in range(len(world)):
+        d = np.hypot(*(world - world[i]).T)
+        d[i] = np.inf
+        near = np.argsort(d)[:k]
+        h, _ = cv2.findHomography(world[near], image[near], 0)
+        p = cv2.perspectiveTransform(world[i][None, None].astype(np.float64), h)[0, 0]
+        out[i] = np.hypot(*(p - image[i]))
+    return out
+
+
+@pytest.mark.skipif(not PHOTOS, reason="no real chessboard photographs in ../shared")
+@pytest.mark.parametrize("photo", PHOTOS, ids=[p.name for p, _ in PHOTOS])
+def test_real_photo_corners_scatter_no_more_than_opencvs(
+    photo: tuple[Path, tuple[int, int]],
+) -> None:
+    # The issue's accuracy goal on photographs, where no truth is known: each corner's
+    # residual against the homography of its neighbours no worse than SB's corners'.
+    path, (cols, rows) = photo
+    grey = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    board = ChessboardBoard(cols, rows, 60.0)
+    theirs = opencv_sb(grey, board)
+    if theirs is None:
+        pytest.skip("findChessboardCornersSB finds no board here")
+    det = detect_chessboard(grey, board, turned=True)
+    assert not det.partial
+    # SB's corners in planarcal's order (nearest), for the same board points.
+    gap = np.hypot(*(det.image_points[:, None] - theirs[None]).transpose(2, 0, 1))
+    matched = theirs[np.argmin(gap, axis=1)]
+    world = det.world_points()
+    ours = np.sqrt(np.mean(neighbour_residuals(world, det.image_points) ** 2))
+    sb = np.sqrt(np.mean(neighbour_residuals(world, matched) ** 2))
+    assert ours <= sb
