@@ -26,8 +26,11 @@ The fit runs in two passes: in a small window (at most START_RADIUS_PX) from the
 in the wide window over the pixels near the edges only (the flat rest tells nothing of where
 they run), so a wide window costs little more than a small one. A corner is kept only where
 the model also matches the image in the small window (a wide window fits the X about a corner
-hidden under a glare spot). Measured against cornerSubPix and findChessboardCornersSB in
-benches/bench_detection.py.
+hidden under a glare spot). A lens bends the edges: given the grid lines' bends (``bends``,
+from the grid of refined corners), the model's edges bend with them, so a wide window keeps
+no lean towards their concave side (0.27 kappa r^2 for a straight-edged fit: 0.03 px in a
+strongly barrelled render, 0.006 with the bends). Measured against cornerSubPix and
+findChessboardCornersSB in benches/bench_detection.py.
 """
 
 from __future__ import annotations
@@ -45,9 +48,8 @@ MIN_RADIUS_PX = 2.5
 """The smallest fitting window's half-width (px)."""
 MAX_RADIUS_PX = 24.0
 """The largest fitting window's half-width (px): enough for any blur a corner survives, small
-enough that a lens's curvature of the edges inside it (a straight-edged model's bias grows
-with the window's area) stays below 0.05 px in a strongly barrelled synth render (0.08 px at
-30 px)."""
+enough that a lens's curvature of the edges inside it stays near parabolic (see ``bends``)
+and that the fit stays quick."""
 START_RADIUS_PX = 10.0
 """The first pass's largest window half-width (px)."""
 RADIUS_FRACTION = 0.65
@@ -111,12 +113,15 @@ def refine_corners(
     *,
     iterations: int = ITERATIONS,
     dotted: bool = False,
+    bends: F64 | None = None,
 ) -> RefinedCorners:
     """Refine X-corners in `grey` (H x W) from their starting `points` (N, 2); `axes` (N, 2,
     2) are the image vectors along the two grid lines through each corner (they set the
     window, see corner_radius, unless `radius` (N,) gives it; `dotted`: the board has marker
-    dots in its squares). Returns the points with what the fit says about each (``refined``
-    False where it found no corner)."""
+    dots in its squares; `bends` (N, 2, 2): along each grid line the second difference of
+    the corners over the squared half-chord, (p+ - 2p + p-) / h^2 (1/px), which bends the
+    model's edges as a lens bends the lines). Returns the points with what the fit says
+    about each (``refined`` False where it found no corner)."""
     pts = np.asarray(points, np.float64).reshape(-1, 2)
     n = len(pts)
     ax = np.asarray(axes, np.float64).reshape(n, 2, 2)
@@ -130,8 +135,11 @@ def refine_corners(
 
     # Parameters: x, y, angle of edge 1's normal, angle of edge 2's normal, sigma, m, a.
     # The light's slope (7, 8) starts flat.
-    theta = np.zeros((n, N_PARAMS))
+    # Columns 9-12, held fixed: the grid lines' bends (see `bends`).
+    theta = np.zeros((n, N_PARAMS + 4))
     theta[:, :2] = pts
+    if bends is not None:
+        theta[:, N_PARAMS:] = np.asarray(bends, np.float64).reshape(n, 4)
     # An edge along a grid line has its normal at 90 degrees to it.
     theta[:, 2] = np.arctan2(ax[:, 0, 1], ax[:, 0, 0]) + np.pi / 2
     theta[:, 3] = np.arctan2(ax[:, 1, 1], ax[:, 1, 0]) + np.pi / 2
@@ -248,7 +256,7 @@ def _levenberg_marquardt(
     w = _weights(px, py, theta[:, :2], rad, inside)
     cost, hess, grad = _normal_equations(resid, jac, w)
     lam = np.full(len(theta), 1e-3)
-    eye = np.eye(theta.shape[1])
+    eye = np.eye(N_PARAMS)
     # Corners still moving; a converged one costs nothing more.
     active = np.arange(len(theta))
     for _ in range(steps):
@@ -256,7 +264,8 @@ def _levenberg_marquardt(
         diag = np.einsum("nii->ni", hess[a])
         damped = hess[a] + (lam[a, None, None] * (diag[:, :, None] + 1e-9)) * eye
         step = _solve(damped, -grad[a])
-        trial = theta[a] + step
+        trial = theta[a].copy()
+        trial[:, :N_PARAMS] += step
         # A blur of more than MAX_SIGMA_FRACTION of the window leaves no corner to find in
         # it (the model flattens into a saddle that fits any smooth patch, a glare spot).
         top = np.maximum(MAX_SIGMA_FRACTION * rad[a], 2.0 * MIN_SIGMA_PX)
@@ -329,8 +338,21 @@ def _weights(px: F64, py: F64, centre: F64, radius: F64, inside: NDArray[np.bool
 
 
 def _dist(px: F64, py: F64, theta: F64, k: int) -> F64:
+    return _edge(px, py, theta, k)[0]
+
+
+def _edge(px: F64, py: F64, theta: F64, k: int) -> tuple[F64, F64, F64, F64, F64]:
+    """Edge `k`'s (2 or 3) signed distance ``n . q + kappa (t . q)^2`` of each pixel (``q``
+    from the corner, ``n`` the edge's normal, ``t`` its direction, ``kappa = -n . b / 2``
+    from its grid line's bend ``b``), with ``t . q``, the normal's cos and sin, kappa."""
     c, s = np.cos(theta[:, k : k + 1]), np.sin(theta[:, k : k + 1])
-    return np.asarray((px - theta[:, :1]) * c + (py - theta[:, 1:2]) * s, dtype=np.float64)
+    col = N_PARAMS + 2 * (k - 2)
+    kappa = -0.5 * (c * theta[:, col : col + 1] + s * theta[:, col + 1 : col + 2])
+    qx = px - theta[:, :1]
+    qy = py - theta[:, 1:2]
+    along = -qx * s + qy * c
+    d = qx * c + qy * s + kappa * along**2
+    return np.asarray(d, np.float64), along, c, s, kappa
 
 
 def _model(px: F64, py: F64, theta: F64) -> tuple[F64, ...]:
@@ -357,17 +379,19 @@ def _residual_jacobian(
     # d erf(d / (sqrt2 sigma)) / dd = sqrt(2/pi) / sigma * exp(-d^2 / (2 sigma^2))
     g1 = _SQRT_2_OVER_PI / sig * np.exp(-0.5 * (d1 / sig) ** 2)
     g2 = _SQRT_2_OVER_PI / sig * np.exp(-0.5 * (d2 / sig) ** 2)
-    c1, s1 = np.cos(theta[:, 2:3]), np.sin(theta[:, 2:3])
-    c2, s2 = np.cos(theta[:, 3:4]), np.sin(theta[:, 3:4])
+    _, t1, c1, s1, kappa1 = _edge(px, py, theta, 2)
+    _, t2, c2, s2, kappa2 = _edge(px, py, theta, 3)
+    k1 = 2.0 * kappa1 * t1
+    k2 = 2.0 * kappa2 * t2
     de1 = a * g1 * e2  # dmodel/dd1
     de2 = a * e1 * g2  # dmodel/dd2
     jac = np.empty((*values.shape, N_PARAMS))
     # The light's slope is measured from the corner, so it moves with it.
-    jac[..., 0] = -de1 * c1 - de2 * c2 - theta[:, 7:8]
-    jac[..., 1] = -de1 * s1 - de2 * s2 - theta[:, 8:9]
-    # dd1/dangle1 = -(px - x) sin + (py - y) cos
-    jac[..., 2] = de1 * (-(px - theta[:, :1]) * s1 + (py - theta[:, 1:2]) * c1)
-    jac[..., 3] = de2 * (-(px - theta[:, :1]) * s2 + (py - theta[:, 1:2]) * c2)
+    jac[..., 0] = de1 * (-c1 + k1 * s1) + de2 * (-c2 + k2 * s2) - theta[:, 7:8]
+    jac[..., 1] = de1 * (-s1 - k1 * c1) + de2 * (-s2 - k2 * c2) - theta[:, 8:9]
+    # dd/dangle = t . q - 2 kappa (t . q)(n . q) (kappa's own turn with the edge neglected)
+    jac[..., 2] = de1 * (t1 - k1 * (d1 - kappa1 * t1**2))
+    jac[..., 3] = de2 * (t2 - k2 * (d2 - kappa2 * t2**2))
     jac[..., 4] = -(de1 * d1 + de2 * d2) / sig
     jac[..., 5] = 1.0
     jac[..., 6] = e1 * e2

@@ -392,6 +392,7 @@ def _finish(
     flat = grid.points.reshape(-1, 2)
     refined = refine_corners(grey, flat, axes.reshape(-1, 2, 2), dotted=board.origin_marker)
     points = refined.points.reshape(rows_g, cols_g, 2)
+    refined, points = _bent_edges(grey, flat, axes, refined, points, board.origin_marker)
     levels = _cell_levels(grey, points)
     reading = _marker_reading(points, levels, board)
     if reading is None:
@@ -411,6 +412,52 @@ def _finish(
         refined = refine_corners(grey, flat, axes.reshape(-1, 2, 2), dotted=True)
         points = refined.points.reshape(rows_g, cols_g, 2)
     return _detection(grey, grid, points, refined, reading, board)
+
+
+def _grid_bends(points: F64) -> F64:
+    """(R, C, 2, 2): along each grid line through each corner (u, then v), the second
+    difference of the corners over the squared half-chord (1/px; a line's ends take their
+    neighbour's, a line of two corners none)."""
+    rows_g, cols_g = points.shape[:2]
+    out = np.zeros((rows_g, cols_g, 2, 2))
+    for axis, grid in ((0, points), (1, points.transpose(1, 0, 2))):
+        if grid.shape[1] < 3:
+            continue
+        second = grid[:, 2:] - 2.0 * grid[:, 1:-1] + grid[:, :-2]
+        half = np.maximum(np.linalg.norm(grid[:, 2:] - grid[:, :-2], axis=2) / 2.0, 1e-9)
+        b = second / half[..., None] ** 2
+        b = np.concatenate([b[:, :1], b, b[:, -1:]], axis=1)
+        out[:, :, axis] = b if axis == 0 else b.transpose(1, 0, 2)
+    # A lens bends the lines smoothly; each corner's own second difference is noisy (its
+    # error over h^2): averaged over the corner's 3 x 3 neighbourhood.
+    padded = np.pad(out, ((1, 1), (1, 1), (0, 0), (0, 0)), mode="edge")
+    return np.asarray(
+        sum(padded[i : i + rows_g, j : j + cols_g] for i in range(3) for j in range(3)) / 9.0,
+        dtype=np.float64,
+    )
+
+
+def _bent_edges(
+    grey: NDArray[np.uint8] | NDArray[np.float32],
+    flat: F64,
+    axes: F64,
+    refined: RefinedCorners,
+    points: F64,
+    dotted: bool,
+) -> tuple[RefinedCorners, F64]:
+    """Refined again with the model's edges bent as the grid lines through the refined
+    corners bend (a lens's distortion), where the bend inside a corner's window would lean
+    a straight-edged fit by more than about 0.01 px (0.27 kappa r^2 towards the concave
+    side); the bends come from the grid, so the fit gains no free parameter."""
+    bends = _grid_bends(points).reshape(-1, 2, 2)
+    if not np.isfinite(bends).all():
+        return refined, points
+    radius = corner_radius(flat, axes.reshape(-1, 2, 2), dotted=dotted)
+    kappa = 0.5 * np.max(np.linalg.norm(bends, axis=2), axis=1)
+    if not (0.27 * kappa * radius**2 > 0.01).any():
+        return refined, points
+    again = refine_corners(grey, flat, axes.reshape(-1, 2, 2), dotted=dotted, bends=bends)
+    return again, again.points.reshape(points.shape)
 
 
 def _cell_levels(grey: NDArray[np.uint8] | NDArray[np.float32], points: F64) -> F64:
