@@ -341,30 +341,39 @@ def _dist(px: F64, py: F64, theta: F64, k: int) -> F64:
     return _edge(px, py, theta, k)[0]
 
 
-def _edge(px: F64, py: F64, theta: F64, k: int) -> tuple[F64, F64, F64, F64, F64]:
+_Edge = tuple[F64, F64, F64, F64, F64 | None]
+
+
+def _edge(px: F64, py: F64, theta: F64, k: int) -> _Edge:
     """Edge `k`'s (2 or 3) signed distance ``n . q + kappa (t . q)^2`` of each pixel (``q``
     from the corner, ``n`` the edge's normal, ``t`` its direction, ``kappa = -n . b / 2``
-    from its grid line's bend ``b``), with ``t . q``, the normal's cos and sin, kappa."""
+    from its grid line's bend ``b``), with ``t . q``, the normal's cos and sin, and kappa
+    (None where no corner is given a bend: the straight model, quicker)."""
     c, s = np.cos(theta[:, k : k + 1]), np.sin(theta[:, k : k + 1])
-    col = N_PARAMS + 2 * (k - 2)
-    kappa = -0.5 * (c * theta[:, col : col + 1] + s * theta[:, col + 1 : col + 2])
     qx = px - theta[:, :1]
     qy = py - theta[:, 1:2]
     along = -qx * s + qy * c
-    d = qx * c + qy * s + kappa * along**2
-    return np.asarray(d, np.float64), along, c, s, kappa
+    d = qx * c + qy * s
+    col = N_PARAMS + 2 * (k - 2)
+    bend = theta[:, col : col + 2]
+    if not bend.any():
+        return np.asarray(d, np.float64), along, c, s, None
+    kappa = -0.5 * (c * bend[:, :1] + s * bend[:, 1:])
+    return np.asarray(d + kappa * along**2, np.float64), along, c, s, kappa
 
 
-def _model(px: F64, py: F64, theta: F64) -> tuple[F64, ...]:
+def _model(px: F64, py: F64, theta: F64) -> tuple[F64, F64, F64, _Edge, _Edge]:
+    """The model (N, P), each edge's blurred step (e1, e2) and each edge's (d, t . q, cos,
+    sin, kappa) from _edge."""
     sig = theta[:, 4:5]
-    d1 = _dist(px, py, theta, 2)
-    d2 = _dist(px, py, theta, 3)
-    e1 = erf(d1 / (_SQRT2 * sig))
-    e2 = erf(d2 / (_SQRT2 * sig))
+    edge1 = _edge(px, py, theta, 2)
+    edge2 = _edge(px, py, theta, 3)
+    e1 = erf(edge1[0] / (_SQRT2 * sig))
+    e2 = erf(edge2[0] / (_SQRT2 * sig))
     light = (
         theta[:, 5:6] + theta[:, 7:8] * (px - theta[:, :1]) + theta[:, 8:9] * (py - theta[:, 1:2])
     )
-    return d1, d2, e1, e2, light + theta[:, 6:7] * e1 * e2
+    return light + theta[:, 6:7] * e1 * e2, e1, e2, edge1, edge2
 
 
 def _residual_jacobian(
@@ -373,25 +382,29 @@ def _residual_jacobian(
     """The residual model - values (N, P) and its Jacobian (N, P, 9; empty unless asked)."""
     sig = theta[:, 4:5]
     a = theta[:, 6:7]
-    d1, d2, e1, e2, model = _model(px, py, theta)
+    model, e1, e2, (d1, t1, c1, s1, kappa1), (d2, t2, c2, s2, kappa2) = _model(px, py, theta)
     if not jacobian:
         return model - values, np.zeros((0, N_PARAMS))
     # d erf(d / (sqrt2 sigma)) / dd = sqrt(2/pi) / sigma * exp(-d^2 / (2 sigma^2))
     g1 = _SQRT_2_OVER_PI / sig * np.exp(-0.5 * (d1 / sig) ** 2)
     g2 = _SQRT_2_OVER_PI / sig * np.exp(-0.5 * (d2 / sig) ** 2)
-    _, t1, c1, s1, kappa1 = _edge(px, py, theta, 2)
-    _, t2, c2, s2, kappa2 = _edge(px, py, theta, 3)
-    k1 = 2.0 * kappa1 * t1
-    k2 = 2.0 * kappa2 * t2
     de1 = a * g1 * e2  # dmodel/dd1
     de2 = a * e1 * g2  # dmodel/dd2
     jac = np.empty((*values.shape, N_PARAMS))
     # The light's slope is measured from the corner, so it moves with it.
-    jac[..., 0] = de1 * (-c1 + k1 * s1) + de2 * (-c2 + k2 * s2) - theta[:, 7:8]
-    jac[..., 1] = de1 * (-s1 - k1 * c1) + de2 * (-s2 - k2 * c2) - theta[:, 8:9]
-    # dd/dangle = t . q - 2 kappa (t . q)(n . q) (kappa's own turn with the edge neglected)
-    jac[..., 2] = de1 * (t1 - k1 * (d1 - kappa1 * t1**2))
-    jac[..., 3] = de2 * (t2 - k2 * (d2 - kappa2 * t2**2))
+    if kappa1 is None or kappa2 is None:
+        jac[..., 0] = -de1 * c1 - de2 * c2 - theta[:, 7:8]
+        jac[..., 1] = -de1 * s1 - de2 * s2 - theta[:, 8:9]
+        jac[..., 2] = de1 * t1  # dd/dangle = t . q
+        jac[..., 3] = de2 * t2
+    else:
+        k1 = 2.0 * kappa1 * t1
+        k2 = 2.0 * kappa2 * t2
+        jac[..., 0] = de1 * (-c1 + k1 * s1) + de2 * (-c2 + k2 * s2) - theta[:, 7:8]
+        jac[..., 1] = de1 * (-s1 - k1 * c1) + de2 * (-s2 - k2 * c2) - theta[:, 8:9]
+        # dd/dangle = t . q - 2 kappa (t . q)(n . q) (kappa's own turn with the edge neglected)
+        jac[..., 2] = de1 * (t1 - k1 * (d1 - kappa1 * t1**2))
+        jac[..., 3] = de2 * (t2 - k2 * (d2 - kappa2 * t2**2))
     jac[..., 4] = -(de1 * d1 + de2 * d2) / sig
     jac[..., 5] = 1.0
     jac[..., 6] = e1 * e2

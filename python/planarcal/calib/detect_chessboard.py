@@ -453,7 +453,11 @@ def _bent_edges(
     if not np.isfinite(bends).all():
         return refined, points
     radius = corner_radius(flat, axes.reshape(-1, 2, 2), dotted=dotted)
-    kappa = 0.5 * np.max(np.linalg.norm(bends, axis=2), axis=1)
+    # Only the bend across a line (perspective alone changes the spacing along it).
+    ax = axes.reshape(-1, 2, 2)
+    direction = ax / np.maximum(np.linalg.norm(ax, axis=2, keepdims=True), 1e-12)
+    across = np.abs(direction[..., 0] * bends[..., 1] - direction[..., 1] * bends[..., 0])
+    kappa = 0.5 * np.max(across, axis=1)
     if not (0.27 * kappa * radius**2 > 0.01).any():
         return refined, points
     again = refine_corners(grey, flat, axes.reshape(-1, 2, 2), dotted=dotted, bends=bends)
