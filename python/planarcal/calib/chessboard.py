@@ -73,11 +73,6 @@ class ChessboardBoard(SquareCorners):
             ) from None
         if not isinstance(self.origin_marker, bool):
             raise BoardError(f"origin_marker must be True or False, got {self.origin_marker!r}")
-        if self.origin_marker and min(self.cols, self.rows) < 3:
-            raise BoardError(
-                "an origin marker needs at least 3 x 3 inner corners (its three dots sit in "
-                f"the squares about the middle), got {self.cols} x {self.rows}"
-            )
 
     @property
     def orientation_fixed(self) -> bool:

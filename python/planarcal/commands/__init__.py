@@ -366,13 +366,6 @@ def board_from(args: argparse.Namespace) -> Board:
             chess = ChessboardBoard()
             cols = args.cols if "cols" in given else chess.cols
             rows = args.rows if "rows" in given else chess.rows
-            if args.origin_marker and min(cols, rows) == 2:
-                # Said in the options' words: the marker may be the default, not typed.
-                raise BoardError(
-                    f"a chessboard's origin marker needs at least 3 x 3 inner corners (its "
-                    f"three dots sit in the squares about the middle), got {cols} x {rows}: "
-                    "give more --cols/--rows, or --no-origin-marker"
-                )
             return ChessboardBoard(
                 cols=cols,
                 rows=rows,
