@@ -298,6 +298,20 @@ def test_real_photographs_at_least_opencv_and_no_wrong_id(name: str, photo: str)
     square_px = found.pitch_px
     gap = np.linalg.norm(found.image_points[common] - cv_points[np.isin(cv_ids, found.ids)], axis=1)
     assert gap.max() < 0.3 * square_px
+    # The issue's accuracy on photographs (no truth): the corners both find scatter about
+    # their neighbours' homography no more than OpenCV's (within 0.005 px, the ties of a
+    # 720 x 540 view). On the oblique 4096 x 3072 close-up color-13.jpg a disc reaching the
+    # markers' borders made it 2.30 px against OpenCV's 2.13.
+    if common.sum() >= 6:
+        ours, _ = local_residuals(board, found.ids[common], found.image_points[common])
+        keep = np.isin(cv_ids, found.ids)
+        theirs, _ = local_residuals(board, cv_ids[keep], cv_points[keep])
+        assert _rms(ours) <= _rms(theirs) + 0.005
+
+
+def _rms(values: NDArray[np.float64]) -> float:
+    values = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(values**2))) if len(values) else 0.0
 
 
 def test_dictionary_by_opencv_enum_value() -> None:
