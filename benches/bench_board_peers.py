@@ -25,7 +25,7 @@ Without them the bench says so and exits 0. Sections:
    the homography of its found neighbours within two squares: no truth, the lens and the
    paper's bending included, lower is closer to the grid) over each finder's own corners
    and, comparable, over the corners it and planarcal both find (within 2 px of each
-   other), median time.
+   other; each against its neighbours among those corners only), median time.
 3. **ChArUco on renders**: corners found, wrong ids (more than a third of a square from the
    truth of their id), RMS error against the truth of their id, median time of 3 runs;
    planarcal, ``calib_targets.detect_charuco`` (default and saddle-point refiner) and
@@ -262,21 +262,27 @@ def local_residuals(grid: F64, points: F64) -> tuple[F64, F64]:
 
 
 class Paired:
-    """Local residuals of each finder's corners beside planarcal's at the same place (within
-    2 px): the finders' corner sets differ, so only the corners both find compare fairly."""
+    """Local residuals of a finder's corners and planarcal's on the corners both find (at
+    the same place within 2 px), each against the homography of its neighbours among those
+    common corners only: a corner's residual depends on which neighbours were found, so only
+    the same set compares fairly (an extra corner at a bent edge changes its neighbours')."""
 
     def __init__(self) -> None:
         self.own: list[float] = []
         self.other: list[float] = []
 
     def add(self, mine: tuple[F64, F64], reference: tuple[F64, F64] | None) -> None:
-        if reference is None or len(mine[0]) == 0 or len(reference[0]) == 0:
+        """`mine`, `reference`: (grid in squares, image points) of a finder and planarcal."""
+        if reference is None or len(mine[1]) == 0 or len(reference[1]) == 0:
             return
         d = np.linalg.norm(mine[1][:, None] - reference[1][None], axis=2)
         nearest = d.argmin(axis=1)
-        both = (d.min(axis=1) <= 2.0) & np.isfinite(mine[0]) & np.isfinite(reference[0][nearest])
-        self.own.extend(mine[0][both].tolist())
-        self.other.extend(reference[0][nearest][both].tolist())
+        both = d.min(axis=1) <= 2.0
+        own_px, own_sq = local_residuals(mine[0][both], mine[1][both])
+        ref_px, ref_sq = local_residuals(reference[0][nearest][both], reference[1][nearest][both])
+        keep = (own_sq <= 1 / 3) & (ref_sq <= 1 / 3)  # NaN (too few neighbours) is dropped
+        self.own.extend(own_px[keep].tolist())
+        self.other.extend(ref_px[keep].tolist())
 
     def cell(self) -> str:
         return f"{fmt(rms(self.own), 3)} / {fmt(rms(self.other), 3)} ({len(self.own)})"
@@ -418,8 +424,8 @@ def chess_real(md: bool) -> None:
                     px = local_residuals(grid, points)[0]
                     residuals[name].extend(px.tolist())
                     if name == "planarcal":
-                        mine_ref = (px, points)
-                    paired[name].add((px, points), mine_ref)
+                        mine_ref = (grid, points)
+                    paired[name].add((grid, points), mine_ref)
         for name in finders:
             rows.append(
                 [
@@ -515,10 +521,10 @@ def charuco_real(md: bool) -> None:
                     px, squares = local_residuals(grid[ids[known]], points[known])
                     wrong[name] += int((squares > 1 / 3).sum())
                     residuals[name].extend(px[squares <= 1 / 3].tolist())
-                    kept = (np.where(squares <= 1 / 3, px, np.nan), points[known])
+                    seen = (grid[ids[known]], points[known])
                     if name == "planarcal":
-                        mine_ref = kept
-                    paired[name].add(kept, mine_ref)
+                        mine_ref = seen
+                    paired[name].add(seen, mine_ref)
         for name in finders:
             rows.append(
                 [
