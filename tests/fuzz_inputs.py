@@ -791,9 +791,15 @@ def fixtures() -> Fixtures:
             texts,
             tracker,
             np.asarray(variant.image, dtype=np.uint8),
-            variant.board,
+            _circle_grid(variant.board),
         )
     return _FIXTURES
+
+
+def _circle_grid(board: object) -> pc.CircleGridBoard:
+    """The corpus variant's board: a circle grid (the fixtures' calibration is of one)."""
+    assert isinstance(board, pc.CircleGridBoard)
+    return board
 
 
 def damaged_board(rng: np.random.Generator, image: NDArray[np.uint8]) -> Any:

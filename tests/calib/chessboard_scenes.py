@@ -221,7 +221,7 @@ def render_board(
     if gradient:
         level *= 1.0 - gradient * (np.arange(w) / w)[None, :]
     if blur_px > 0:
-        level = cv2.GaussianBlur(level, (0, 0), blur_px)
+        level = np.asarray(cv2.GaussianBlur(level, (0, 0), blur_px), np.float64)
     if noise > 0:
         level = level + np.random.default_rng(seed).normal(0, noise, level.shape)
     image = np.clip(np.rint(level), 0, 255).astype(np.uint8)

@@ -282,7 +282,9 @@ def test_real_photographs_at_least_opencv_and_no_wrong_id(name: str, photo: str)
     if not path.exists():
         pytest.skip(f"the real photographs are not here ({REAL / name})")
     board = REAL_SETS[name]
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    read = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    assert read is not None
+    image = np.asarray(read, np.uint8)
     cv_points, cv_ids = _opencv(image, board, False)
     try:
         found = detect_charuco(image, board)

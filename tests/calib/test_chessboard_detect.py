@@ -38,7 +38,7 @@ def render(
 ) -> RenderedBoard:
     effects = {k: view.pop(k) for k in ("blur_px", "noise", "k") if k in view}
     shift = (view.pop("shift_x", 0.0), view.pop("shift_y", 0.0))
-    h = look_at_homography(board.extent, SIZE, shift_px=shift, **view)
+    h = look_at_homography(board.extent, SIZE, shift_px=shift, **view)  # type: ignore[arg-type]
     return render_board(board, h, SIZE, supersample=supersample, seed=seed, **effects)
 
 
@@ -47,23 +47,23 @@ def rms(errors: F64) -> float:
 
 
 def opencv_sb(image: NDArray[np.uint8], board: ChessboardBoard) -> F64 | None:
-    found, corners = cv2.findChessboardCornersSB(image, (board.cols, board.rows), SB_FLAGS)
-    return corners.reshape(-1, 2).astype(np.float64) if found else None
+    found, corners = cv2.findChessboardCornersSB(image, (board.cols, board.rows), flags=SB_FLAGS)
+    return np.asarray(corners, np.float64).reshape(-1, 2) if found else None
 
 
 def opencv_subpix(image: NDArray[np.uint8], board: ChessboardBoard) -> F64 | None:
-    found, corners = cv2.findChessboardCorners(image, (board.cols, board.rows), CLASSIC_FLAGS)
+    found, corners = cv2.findChessboardCorners(image, (board.cols, board.rows), flags=CLASSIC_FLAGS)
     if not found:
         return None
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 0.001)
     refined = cv2.cornerSubPix(image, corners, (5, 5), (-1, -1), criteria)
-    return refined.reshape(-1, 2).astype(np.float64)
+    return np.asarray(refined, np.float64).reshape(-1, 2)
 
 
 def nearest_truth(points: F64, truth: F64) -> F64:
     """Each point's nearest true corner (OpenCV's order may differ from planarcal's)."""
     d = np.hypot(*(points[:, None, :] - truth[None, :, :]).transpose(2, 0, 1))
-    return truth[np.argmin(d, axis=1)]
+    return np.asarray(truth[np.argmin(d, axis=1)], np.float64)
 
 
 # ------------------------------------------------------------------------------------------
@@ -317,7 +317,9 @@ PHOTOS = real_photos()
 @pytest.mark.parametrize("photo", PHOTOS, ids=[p.name for p, _ in PHOTOS])
 def test_real_photo_found_wherever_opencv_finds_it(photo: tuple[Path, tuple[int, int]]) -> None:
     path, (cols, rows) = photo
-    grey = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    read = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    assert read is not None
+    grey = np.asarray(read, np.uint8)
     board = ChessboardBoard(cols, rows, 60.0)
     theirs = opencv_sb(grey, board)
     if theirs is None:
@@ -359,7 +361,9 @@ def test_real_photo_corners_scatter_no_more_than_opencvs(
     # The issue's accuracy goal on photographs, where no truth is known: each corner's
     # residual against the homography of its neighbours no worse than SB's corners'.
     path, (cols, rows) = photo
-    grey = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    read = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    assert read is not None
+    grey = np.asarray(read, np.uint8)
     board = ChessboardBoard(cols, rows, 60.0)
     theirs = opencv_sb(grey, board)
     if theirs is None:

@@ -76,6 +76,7 @@ def test_the_right_description_passes_and_the_dots_are_measured(
     assert sizes is not None and sizes.tolerance is not None, sizes
     # Within the tolerance it claims, and within 10 % here.
     assert abs(sizes.diameter_mm / 12.0 - 1.0) < min(0.1, sizes.tolerance)
+    assert isinstance(det.board, CircleGridBoard)
     assert sizes.diameter_to_pitch(det.board) == pytest.approx(0.6, rel=0.1)
     # The size is measured whether or not the board states it.
     unstated = _detect(images[name], diameter=None).sizes

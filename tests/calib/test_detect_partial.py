@@ -77,7 +77,7 @@ def _same_dots(part: BoardDetection, whole: BoardDetection, offset: tuple[int, i
 
 
 def test_fiducials_are_part_of_the_description() -> None:
-    board = CircleGridBoard(16, 14, 5.0, 2.0, fiducials=[154, 69, 149, 74])
+    board = CircleGridBoard(16, 14, 5.0, 2.0, fiducials=[154, 69, 149, 74])  # type: ignore[arg-type]
     assert board.fiducials == UCL_FIDUCIALS  # sorted, a tuple (the board stays hashable)
     assert hash(board) == hash(CircleGridBoard(16, 14, 5.0, 2.0, fiducials=UCL_FIDUCIALS))
     data = board.to_dict()

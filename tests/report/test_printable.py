@@ -206,6 +206,7 @@ def check_raster(gray: NDArray[np.uint8], layout: PrintLayout, px_per_mm: float)
     assert gray.shape == (round(h * px_per_mm), round(w * px_per_mm))
     centroids, areas = dark_blobs(gray)
     expected = expected_centres(layout) * px_per_mm
+    assert isinstance(layout.board, CircleGridBoard)
     diameters = layout.board.dot_diameters()
     for k, (point, d) in enumerate(zip(expected, diameters, strict=True)):
         distance = np.linalg.norm(centroids - point, axis=1)

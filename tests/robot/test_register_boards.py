@@ -188,6 +188,7 @@ def test_the_saved_registration_keeps_its_fields(tmp_path: Path, corner_cal: Cal
     assert loaded.robot_frame is not None and loaded.robot_frame.dots == tuple(ids)
     # The loaded file names them by its board: corners.
     assert loaded.robot_frame.pair_name(0) == f"corner {ids[0]}"
+    assert registered.robot_frame is not None
     np.testing.assert_allclose(
         loaded.robot_frame.plane_to_robot, registered.robot_frame.plane_to_robot, atol=1e-9
     )

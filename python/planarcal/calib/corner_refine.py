@@ -2,8 +2,9 @@
 
 Near an X-corner of a chessboard (or a ChArUco board) the image is two straight edges
 crossing: ``I(p) = m + g . (p - c) + a * E(d1(p)) * E(d2(p))`` where ``d1``, ``d2`` are the
-signed distances of ``p`` from the two edges through the corner ``c``, ``E(d) = erf(d /
-(sqrt(2) * sigma))`` a step blurred by the lens and the pixels, ``m`` the mean grey, ``g`` the
+signed distances of ``p`` from the two edges through the corner ``c``, ``E(d)`` a step blurred
+by the lens (erf(d / (sqrt(2) * sigma))) and averaged over the pixel's width (a 1 px box
+across the edge: _pixel_step), ``m`` the mean grey, ``g`` the
 light's slope across the window and ``a`` half the contrast (its sign says which quadrants are
 black). The nine parameters (corner x, y, the two edges' angles, sigma, m, a, g) are fitted by
 weighted Levenberg-Marquardt, all corners at once.
@@ -58,6 +59,8 @@ DOTTED_RADIUS_FRACTION = 0.42
 """A window's half-width in grid steps on a board with marker dots in its squares."""
 N_PARAMS = 9
 MIN_SIGMA_PX = 0.2
+SHARP_SIGMA_PX = 0.7
+"""Below this blur (px) an edge is modelled with the pixel's box exactly (_pixel_step)."""
 MAX_SIGMA_FRACTION = 0.3
 """The largest blur, in window half-widths."""
 ITERATIONS = 30
@@ -362,32 +365,62 @@ def _edge(px: F64, py: F64, theta: F64, k: int) -> _Edge:
     return np.asarray(d + kappa * along**2, np.float64), along, c, s, kappa
 
 
-def _model(px: F64, py: F64, theta: F64) -> tuple[F64, F64, F64, _Edge, _Edge]:
-    """The model (N, P), each edge's blurred step (e1, e2) and each edge's (d, t . q, cos,
-    sin, kappa) from _edge."""
+def _model(
+    px: F64, py: F64, theta: F64
+) -> tuple[F64, tuple[F64, F64, F64], tuple[F64, F64, F64], _Edge, _Edge]:
+    """The model (N, P), each edge's pixel step with its derivatives in d and sigma
+    (_pixel_step) and each edge's (d, t . q, cos, sin, kappa) from _edge."""
     sig = theta[:, 4:5]
     edge1 = _edge(px, py, theta, 2)
     edge2 = _edge(px, py, theta, 3)
-    e1 = erf(edge1[0] / (_SQRT2 * sig))
-    e2 = erf(edge2[0] / (_SQRT2 * sig))
+    step1 = _pixel_step(edge1[0], sig)
+    step2 = _pixel_step(edge2[0], sig)
     light = (
         theta[:, 5:6] + theta[:, 7:8] * (px - theta[:, :1]) + theta[:, 8:9] * (py - theta[:, 1:2])
     )
-    return light + theta[:, 6:7] * e1 * e2, e1, e2, edge1, edge2
+    return light + theta[:, 6:7] * step1[0] * step2[0], step1, step2, edge1, edge2
+
+
+def _pixel_step(d: F64, sig: F64) -> tuple[F64, F64, F64]:
+    """The blurred step as a pixel sees it, and its derivatives in d and sigma: erf(d /
+    (sqrt2 sigma)) averaged over the pixel's width across the edge (a box of 1 px, exact for
+    an edge along the pixel grid and of the pixel's variance, 1/12, at any angle). Without
+    it a sharp edge along the grid is one grey pixel that any (position, blur) pair fits:
+    0.1 px off on sharp renders. Corners blurred by SHARP_SIGMA_PX or more take the erf of
+    the same variance (sigma^2 + 1/12) instead, at half the cost."""
+    step, by_d, by_sig = np.empty_like(d), np.empty_like(d), np.empty_like(d)
+    sharp = sig[:, 0] < SHARP_SIGMA_PX
+    if sharp.any():
+        # F(x) = x erf(x / (sqrt2 s)) + sqrt(2/pi) s exp(-x^2 / (2 s^2)); the step is
+        # F(d + 1/2) - F(d - 1/2); F' is the erf and dF/ds = sqrt(2/pi) exp(.).
+        s_ = sig[sharp]
+        hi, lo = d[sharp] + 0.5, d[sharp] - 0.5
+        erf_hi, erf_lo = erf(hi / (_SQRT2 * s_)), erf(lo / (_SQRT2 * s_))
+        exp_hi, exp_lo = np.exp(-0.5 * (hi / s_) ** 2), np.exp(-0.5 * (lo / s_) ** 2)
+        step[sharp] = hi * erf_hi - lo * erf_lo + _SQRT_2_OVER_PI * s_ * (exp_hi - exp_lo)
+        by_d[sharp] = erf_hi - erf_lo
+        by_sig[sharp] = _SQRT_2_OVER_PI * (exp_hi - exp_lo)
+    if not sharp.all():
+        s_ = sig[~sharp]
+        eff = np.sqrt(s_**2 + 1.0 / 12.0)
+        x = d[~sharp]
+        g = _SQRT_2_OVER_PI / eff * np.exp(-0.5 * (x / eff) ** 2)
+        step[~sharp] = erf(x / (_SQRT2 * eff))
+        by_d[~sharp] = g
+        by_sig[~sharp] = -g * x / eff * (s_ / eff)
+    return step, by_d, by_sig
 
 
 def _residual_jacobian(
     values: F64, px: F64, py: F64, theta: F64, *, jacobian: bool = True
 ) -> tuple[F64, F64]:
     """The residual model - values (N, P) and its Jacobian (N, P, 9; empty unless asked)."""
-    sig = theta[:, 4:5]
     a = theta[:, 6:7]
-    model, e1, e2, (d1, t1, c1, s1, kappa1), (d2, t2, c2, s2, kappa2) = _model(px, py, theta)
+    model, step1, step2, (d1, t1, c1, s1, kappa1), (d2, t2, c2, s2, kappa2) = _model(px, py, theta)
     if not jacobian:
         return model - values, np.zeros((0, N_PARAMS))
-    # d erf(d / (sqrt2 sigma)) / dd = sqrt(2/pi) / sigma * exp(-d^2 / (2 sigma^2))
-    g1 = _SQRT_2_OVER_PI / sig * np.exp(-0.5 * (d1 / sig) ** 2)
-    g2 = _SQRT_2_OVER_PI / sig * np.exp(-0.5 * (d2 / sig) ** 2)
+    e1, g1, s1_sig = step1
+    e2, g2, s2_sig = step2
     de1 = a * g1 * e2  # dmodel/dd1
     de2 = a * e1 * g2  # dmodel/dd2
     jac = np.empty((*values.shape, N_PARAMS))
@@ -405,7 +438,7 @@ def _residual_jacobian(
         # dd/dangle = t . q - 2 kappa (t . q)(n . q) (kappa's own turn with the edge neglected)
         jac[..., 2] = de1 * (t1 - k1 * (d1 - kappa1 * t1**2))
         jac[..., 3] = de2 * (t2 - k2 * (d2 - kappa2 * t2**2))
-    jac[..., 4] = -(de1 * d1 + de2 * d2) / sig
+    jac[..., 4] = a * (s1_sig * e2 + e1 * s2_sig)
     jac[..., 5] = 1.0
     jac[..., 6] = e1 * e2
     jac[..., 7] = px - theta[:, :1]

@@ -55,7 +55,8 @@ from scipy.spatial import cKDTree
 
 from planarcal.calib.blobs import Blobs, find_blobs
 from planarcal.calib.board import CircleGridBoard
-from planarcal.calib.detection import AMBIGUOUS_RULE, BoardDetection, Orientation
+from planarcal.calib.detection import AMBIGUOUS_RULE, Orientation
+from planarcal.calib.detection import BoardDetection as BoardDetection  # its old home
 from planarcal.calib.detection import detect_board as detect_board  # the public name, here too
 from planarcal.calib.dot_centres import not_refined_reasons, refine_centres
 from planarcal.calib.dot_sizes import (
