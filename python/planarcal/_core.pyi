@@ -100,6 +100,28 @@ class FittedPlane:
         free: LensKind,
         image_size: tuple[float, float],
     ) -> FittedPlane: ...
+    @staticmethod
+    def fit_placements(
+        board: ArrayLike,
+        image: ArrayLike,
+        placement: Sequence[int],
+        reference: int,
+        start: Sequence[tuple[float, float, float]],
+        lens: LensKind,
+        image_size: tuple[float, float],
+    ) -> tuple[FittedPlane, NDArray[np.float64], NDArray[np.float64]]: ...
+    @staticmethod
+    def at_placements(
+        h: ArrayLike,
+        lens: RadialLens,
+        board: ArrayLike,
+        image: ArrayLike,
+        placement: Sequence[int],
+        reference: int,
+        poses: Sequence[tuple[float, float, float]],
+        free: LensKind,
+        image_size: tuple[float, float],
+    ) -> tuple[FittedPlane, NDArray[np.float64], NDArray[np.float64]]: ...
     @property
     def homography(self) -> NDArray[np.float64]: ...
     @property

@@ -19,7 +19,7 @@ optional extra is not installed). The Rust bindings raise the classes below too
     ├── LensModelError           (ValueError) a lens model that cannot be fitted or applied
     ├── RegistrationError        (ValueError) point pairs that cannot fix the plane-to-robot map
     ├── BoardError, ImageError, BoardNotFoundError (BoardTurnedError), CalibrationFileError,
-    │   FrameSizeError, IntrinsicsError, OutputError                          (ValueError)
+    │   FrameSizeError, IntrinsicsError, OutputError, PlacementError          (ValueError)
     │   └── BoardMismatchError (a BoardError) the image contradicts the board's description
     ├── CameraError              (OSError)
     ├── MissingDependencyError   (ImportError) an optional extra is not installed
@@ -58,6 +58,7 @@ __all__ = [
     "OpenCVCompatibleError",
     "OpenCVCompatiblePointAtInfinityError",
     "OutputError",
+    "PlacementError",
     "PointAtInfinityError",
     "RegistrationError",
     "StateError",
@@ -133,6 +134,16 @@ class BoardMismatchError(BoardError):
     """The board in the image contradicts its description: its dots, measured on the board
     through the homography, are not the stated size for the stated pitch (the diameter or
     the pitch is wrong), or its origin marker is not the stated size for its dots."""
+
+
+class PlacementError(Error, ValueError):
+    """A placement of the board (one of several images calibrated together) that the plane
+    the others define cannot explain: a board not flat on the plane (lifted on one side,
+    lying on a part) or a wrong detection. ``placement`` is its index (0-based)."""
+
+    def __init__(self, message: str = "", placement: int | None = None) -> None:
+        super().__init__(message)
+        self.placement = placement
 
 
 class ImageError(Error, ValueError):

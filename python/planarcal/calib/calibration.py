@@ -40,7 +40,7 @@ import dataclasses
 import functools
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +54,7 @@ from planarcal.calib.boards import BOARD_TYPES, Board, is_board
 from planarcal.calib.calibration_file import FILE_FORMAT, FILE_VERSION, READS_VERSIONS
 from planarcal.calib.detection import detect_board
 from planarcal.calib.detector_options import check_detector_options
+from planarcal.calib.detector_options import detector_options as detector_options_of
 from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX, ErrorBudget, with_budget
 from planarcal.calib.extrapolation import Extrapolation, extrapolation
 from planarcal.calib.leave_one_out import homography_leave_one_out
@@ -66,11 +67,20 @@ from planarcal.calib.lens_choice import (
     fit_with_lens,
 )
 from planarcal.calib.lens_model import LENS_MODELS, LensModel
+from planarcal.calib.placement_set import (
+    calibration_placements,
+    checked_reference,
+    placement_layout,
+    placement_names,
+    same_camera_and_board,
+)
+from planarcal.calib.placements import Placement, check_placements
 from planarcal.calib.plane_fit import PlaneFit
 from planarcal.camera import CameraIntrinsics, plane_pose, points_at_height
 from planarcal.errors import (
     ArgumentError,
     BoardError,
+    BoardNotFoundError,
     CalibrationFileError,
     FrameSizeError,
     HomographyError,
@@ -243,6 +253,8 @@ class Calibration:
         created: str | None = None,
         *,
         ids: NDArray[np.intp] | None = None,
+        placement_names: tuple[str, ...] = (),
+        placement_partial: tuple[bool, ...] = (),
     ) -> None:
         self._world = world
         self._image = image
@@ -272,6 +284,8 @@ class Calibration:
         """(sx, sy): the factors ``rescaled`` applied to the board's nominal coordinates."""
         self.robot_frame = robot_frame
         """The registration of the board to the robot's base frame, or None (see register)."""
+        self._placement_names = placement_names
+        self._placement_partial = placement_partial
         self.created = calibration_file.now_stamp() if created is None else created
         """When this calibration was made (ISO 8601, UTC): kept by save and load, so that a
         re-save of an unchanged calibration is the same file."""
@@ -333,6 +347,142 @@ class Calibration:
             detection, solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
         )
 
+    @classmethod
+    def from_detections(
+        cls,
+        detections: Sequence[Any],
+        *,
+        reference: int = 0,
+        lens: LensChoice = "auto",
+        intrinsics: CameraIntrinsics | None = None,
+        names: Sequence[str] | None = None,
+    ) -> Calibration:
+        """One calibration from several placements of one board: its detections (each
+        planarcal.detect_board's result, whole or partial) in images from the one fixed
+        camera, the board laid flat at another place on the plane in each. Every
+        placement's in-plane pose is fitted jointly with the one homography and lens, so the
+        lens is fitted wherever a placement lay and the error bars hold over the whole work
+        area (``placements`` gives each pose). The plane's frame is placement `reference`'s
+        board frame. ``names`` label the placements in messages and the report (default
+        "placement k").
+
+        One detection is ``from_detection``'s calibration. PlacementError names a placement
+        the others' plane cannot explain (a board not flat on the plane, a wrong
+        detection); FrameSizeError images of different sizes; BoardError detections of
+        different boards."""
+        dets = list(detections) if isinstance(detections, Sequence) else None
+        if not dets:
+            raise ArgumentError(
+                "detections must be a non-empty sequence of BoardDetections (planarcal."
+                f"detect_board's results), got {type(detections).__name__}"
+            )
+        labels = placement_names(names, len(dets))
+        if len(dets) == 1:
+            cal = cls.from_detection(dets[0], lens=lens, intrinsics=intrinsics)
+            cal._placement_names = labels
+            cal._placement_partial = (bool(dets[0].partial),)
+            return cal
+        board, size = same_camera_and_board(dets, labels)
+        reference = checked_reference(reference, len(dets))
+        layout = placement_layout(dets, reference)
+        image = np.ascontiguousarray(np.concatenate([d.image_points for d in dets]))
+        ids = np.concatenate([d.ids for d in dets]).astype(np.intp)
+        if lens not in ("auto", *LENS_MODELS):
+            raise LensModelError(
+                f"lens must be 'auto' or one of {', '.join(LENS_MODELS)}, got {lens!r}"
+            )
+        if intrinsics is not None and not isinstance(intrinsics, CameraIntrinsics):
+            raise IntrinsicsError(
+                f"intrinsics must be a CameraIntrinsics, got {type(intrinsics).__name__}"
+            )
+        try:
+            fit = fit_with_lens(
+                layout.board_mm, image, "normalized_dlt", True, lens, size, intrinsics, layout
+            )
+        except (LensModelError, HomographyError) as e:
+            raise type(e)(f"the placements cannot be fitted together: {e}") from None
+        assert fit.placements is not None
+        world = fit.placements.plane_points()
+        fit = calibration_file.fit_as_loaded(fit, world, image, size, intrinsics)
+        assert fit.placements is not None
+        ideal = image if intrinsics is None else intrinsics.undistort_points(image)
+        check_placements(
+            fit.placements,
+            ideal,
+            fit.plane.world_to_image(world),
+            lambda px: fit.plane.image_to_world(px, invalid="nan"),
+            labels,
+        )
+        cal = cls.__new__(cls)
+        cal._init(
+            world,
+            image,
+            fit,
+            "normalized_dlt",
+            True,
+            board,
+            size,
+            intrinsics,
+            (1.0, 1.0),
+            ids=ids,
+            placement_names=labels,
+            placement_partial=tuple(bool(d.partial) for d in dets),
+        )
+        return cal
+
+    @classmethod
+    def from_images(
+        cls,
+        images: Sequence[Any],
+        board: Board,
+        *,
+        reference: int = 0,
+        lens: LensChoice = "auto",
+        intrinsics: CameraIntrinsics | None = None,
+        names: Sequence[str] | None = None,
+        **detector_options: Any,
+    ) -> Calibration:
+        """``from_detections`` of `board` detected in each of `images` (arrays or paths; a
+        path's file name is its placement's name unless ``names`` are given)."""
+        if not is_board(board):
+            raise BoardError(
+                f"board must be one of planarcal's boards ({', '.join(BOARD_TYPES)}), got "
+                f"{type(board).__name__}"
+            )
+        if isinstance(images, (str, os.PathLike)) or not isinstance(images, Sequence):
+            raise ArgumentError(
+                f"images must be a sequence of images or paths, got {type(images).__name__}"
+            )
+        check_detector_options(board.kind, detector_options)
+        if names is None:
+            names = [
+                Path(im).name if isinstance(im, (str, os.PathLike)) else f"placement {k}"
+                for k, im in enumerate(images)
+            ]
+        # A placement other than the reference may lie at any angle: its pose takes the
+        # board's turn, so a turned board is no question there (the reference's frame is the
+        # plane's, so its orientation stays the user's to settle).
+        turnable = "turned" in detector_options_of(board.kind)
+        detections = []
+        for k, im in enumerate(images):
+            options = dict(detector_options)
+            if turnable and k != reference and "turned" not in options:
+                options["turned"] = True
+            try:
+                detections.append(detect_board(im, board, **options))
+            except BoardNotFoundError as e:
+                raise type(e)(f"placement {k} ({names[k]}): {e}", e.diagnostics) from None
+        return cls.from_detections(
+            detections, reference=reference, lens=lens, intrinsics=intrinsics, names=names
+        )
+
+    @property
+    def placements(self) -> tuple[Placement, ...]:
+        """The board's placements this calibration was made from, each with its pose in the
+        plane (``from_detections``): one for a calibration from one board view (the
+        reference), none for one made from bare points."""
+        return calibration_placements(self)
+
     def rescaled(
         self, measured_pitch_x_mm: float, measured_pitch_y_mm: float | None = None
     ) -> Calibration:
@@ -366,11 +516,24 @@ class Calibration:
         # The fit is the same problem in scaled units: refit rather than patch H, so every
         # figure (covariance, leave-one-out) is in the new millimetres.
         scale = np.array([sx / self.world_scale[0], sy / self.world_scale[1]])
+        layout = self._fit.placements
         world = np.ascontiguousarray(self._world * scale)
+        if layout is not None:
+            # Each board is scaled in its own frame: the poses are refitted with it.
+            layout = layout.scaled(scale)
         lens = self._fit.lens if self._fit.lens in LENS_MODELS else "none"
         fit = fit_with_lens(
-            world, self._image, self.solver, self.refine, lens, self.image_size, self.intrinsics
+            world,
+            self._image,
+            self.solver,
+            self.refine,
+            lens,
+            self.image_size,
+            self.intrinsics,
+            layout,
         )
+        if fit.placements is not None:
+            world = fit.placements.plane_points()
         fit.candidates = self._fit.candidates
         fit.note = self._fit.note
         fit = calibration_file.fit_as_loaded(
@@ -388,6 +551,8 @@ class Calibration:
             self.intrinsics,
             (sx, sy),
             ids=self.point_ids,
+            placement_names=self._placement_names,
+            placement_partial=self._placement_partial,
         )
         return cal
 
@@ -448,6 +613,8 @@ class Calibration:
             self.world_scale,
             self.robot_frame,
             ids=self.point_ids,
+            placement_names=self._placement_names,
+            placement_partial=self._placement_partial,
         )
         return cal
 

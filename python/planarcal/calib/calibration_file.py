@@ -434,10 +434,12 @@ def fit_as_loaded(
     a calibration maps, reports and saves the same before and after a save: a re-save of an
     unchanged calibration is the same file, byte for byte. A homography alone, or with
     intrinsics, is built the same way either way."""
-    if fit.lens not in LENS_MODELS[1:]:
+    if fit.lens not in LENS_MODELS[1:] and fit.placements is None:
         return fit
-    plane = plane_at(fit.h, world, image, size, fit.lens, fit.plane.lens, intrinsics)
-    return PlaneFit(plane, fit.h, fit.lens, fit.candidates, fit.note)
+    plane, layout = plane_at(
+        fit.h, world, image, size, fit.lens, fit.plane.lens, intrinsics, fit.placements
+    )
+    return PlaneFit(plane, fit.h, fit.lens, fit.candidates, fit.note, placements=layout)
 
 
 def board_points_problem(board: Board, world: F64, world_scale: tuple[float, float]) -> str | None:
@@ -1139,7 +1141,7 @@ def _fit_from_dict(
     elif lens != "none":
         radial = _radial_lens(data.get("lens"), lens, size, source)
     try:
-        plane = plane_at(h, world, image, size, lens, radial, intrinsics)
+        plane, _ = plane_at(h, world, image, size, lens, radial, intrinsics)
     except (ArgumentError, IntrinsicsError, LensModelError, HomographyError) as e:
         raise CalibrationFileError(
             f"{source}: its homography, lens (or intrinsics) and points cannot be used "

@@ -122,10 +122,11 @@ def scaled_fit(
     scaled_lens = RadialLens(
         (float(centre[0]), float(centre[1])), s * lens.scale_px, lens.k1, lens.k2
     )
-    plane = plane_at(h, world, image, size, fit.lens, scaled_lens, intrinsics)
+    layout = fit.placements
+    plane, layout = plane_at(h, world, image, size, fit.lens, scaled_lens, intrinsics, layout)
     candidates = [
         dataclasses.replace(c, loo_mean_px=s * c.loo_mean_px, sigma_px=s * c.sigma_px)
         for c in fit.candidates
     ]
     note = f"{fit.note} (rescaled from {size_text(made_on)} frames)"
-    return PlaneFit(plane, h, fit.lens, candidates, note)
+    return PlaneFit(plane, h, fit.lens, candidates, note, placements=layout)

@@ -6,6 +6,7 @@ cases where no lens model is fitted at all (intrinsics, the paper's estimator, n
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any, Literal
 
 import cv2
@@ -15,6 +16,7 @@ from numpy.typing import NDArray
 from planarcal import _core
 from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS, LensKind
+from planarcal.calib.placements import PlacementLayout, fit_placements
 from planarcal.calib.plane_fit import PlaneFit, fit_homography_alone
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import HomographyError, LensModelError
@@ -76,10 +78,14 @@ def fit_with_lens(
     lens: str,
     size: tuple[int, int] | None,
     intrinsics: CameraIntrinsics | None,
+    layout: PlacementLayout | None = None,
 ) -> PlaneFit:
     """The fit ``lens=`` asks for: the intrinsics' undistortion, no lens model (asked for,
-    the paper's estimator, or nothing to centre one on), a forced model, or the choice."""
+    the paper's estimator, or nothing to centre one on), a forced model, or the choice. With
+    the placements' `layout` (its poses the start), each is the joint fit of every
+    placement's pose with the plane (`world` is then unused)."""
     paper = solver != "normalized_dlt" or not refine
+    fit = _fitter(world, image, size, layout, intrinsics)
     if intrinsics is not None:
         if lens not in ("auto", "none"):
             raise LensModelError(
@@ -87,6 +93,16 @@ def fit_with_lens(
                 f"'none', got {lens!r}"
             )
         ideal = intrinsics.undistort_points(image)
+        if layout is not None:
+            plane, placed = fit("none")
+            return PlaneFit(
+                plane,
+                plane.homography,
+                "intrinsics",
+                [],
+                "points undistorted by the camera's intrinsics",
+                placements=placed,
+            )
         plane, h = fit_homography_alone(world, ideal, solver, refine, size)
         return PlaneFit(plane, h, "intrinsics", [], "points undistorted by the camera's intrinsics")
     if paper and lens not in ("auto", "none"):
@@ -95,57 +111,121 @@ def fit_with_lens(
             f"refine={refine} fit a homography alone (keep the defaults to use lens={lens!r})"
         )
     if lens == "none" or paper:
-        plane, h = fit_homography_alone(world, image, solver, refine, size)
         why = "the paper's estimator" if paper else "asked for"
-        return PlaneFit(plane, h, "none", [], f"no lens model ({why})")
+        return _alone(world, image, solver, refine, size, fit, layout, f"no lens model ({why})")
     if size is None:
         if lens != "auto":
             raise LensModelError(
                 "a lens model is centred on the image: give image_size=(width, height)"
             )
-        plane, h = fit_homography_alone(world, image, solver, refine, size)
-        return PlaneFit(plane, h, "none", [], "no lens model (no image size to centre one on)")
+        return _alone(
+            world, image, solver, refine, size, fit, layout,
+            "no lens model (no image size to centre one on)",
+        )  # fmt: skip
     coverage = _coverage(image, size)
     if lens != "auto":
-        plane = _core.FittedPlane.fit(
-            world, image, LensKind(lens), (float(size[0]), float(size[1]))
-        )
+        plane, placed = fit(lens)
         note = f"lens model {lens} (asked for)"
         if coverage < MIN_LENS_COVERAGE:
             note += (
-                f"; the board reaches only {coverage:.0%} of the way from the image centre "
-                "to its corners (from its nearest point to its farthest), too little to "
-                "determine the distortion"
+                f"; the {_points_word(layout)} reach only {coverage:.0%} of the way from the "
+                "image centre to its corners (from the nearest point to the farthest), too "
+                "little to determine the distortion"
             )
-        return PlaneFit(plane, plane.homography, lens, [], note)
+        return PlaneFit(plane, plane.homography, lens, [], note, placements=placed)
     if coverage < MIN_LENS_COVERAGE:
-        plane, h = fit_homography_alone(world, image, solver, refine, size)
-        return PlaneFit(
-            plane,
-            h,
-            "none",
-            [],
-            f"no lens model: the board reaches only {coverage:.0%} of the way from the image "
-            f"centre to its corners (from its nearest point to its farthest; at least "
-            f"{MIN_LENS_COVERAGE:.0%} needed), too little to determine the distortion; let "
-            "the board fill more of the view",
+        return _alone(
+            world,
+            image,
+            solver,
+            refine,
+            size,
+            fit,
+            layout,
+            f"no lens model: the {_points_word(layout)} reach only {coverage:.0%} of the way "
+            f"from the image centre to its corners (from the nearest point to the farthest; "
+            f"at least {MIN_LENS_COVERAGE:.0%} needed), too little to determine the "
+            "distortion; let the board fill more of the view",
         )
-    return _select_lens(world, image, solver, refine, size)
+    return _select_lens(world, image, solver, refine, size, fit, layout)
+
+
+Fitter = Callable[[str], tuple[Any, PlacementLayout | None]]
+
+
+def _fitter(
+    world: F64,
+    image: F64,
+    size: tuple[int, int] | None,
+    layout: PlacementLayout | None,
+    intrinsics: CameraIntrinsics | None,
+) -> Fitter:
+    """The fit of one lens model: the plane's alone, or jointly with the placements' poses
+    (started from a fit with no lens model, whose poses are the closer start)."""
+    if layout is None:
+
+        def one(model: str) -> tuple[Any, PlacementLayout | None]:
+            assert size is not None
+            frame = (float(size[0]), float(size[1]))
+            return _core.FittedPlane.fit(world, image, LensKind(model), frame), None
+
+        return one
+    if size is None:
+        raise LensModelError("a calibration from placements needs the images' size")
+    ideal = image if intrinsics is None else intrinsics.undistort_points(image)
+    start: list[PlacementLayout] = []
+
+    def joint(model: str) -> tuple[Any, PlacementLayout | None]:
+        if not start:
+            start.append(fit_placements(layout, ideal, "none", size)[1])
+        return fit_placements(start[0], ideal, model, size)
+
+    return joint
+
+
+def _points_word(layout: PlacementLayout | None) -> str:
+    return "board's points" if layout is None else "placements' points"
+
+
+def _alone(
+    world: F64,
+    image: F64,
+    solver: Solver,
+    refine: bool,
+    size: tuple[int, int] | None,
+    fit: Fitter,
+    layout: PlacementLayout | None,
+    note: str,
+    candidates: list[LensCandidate] | None = None,
+) -> PlaneFit:
+    """No lens model: the chosen solver's homography (one board view) or the joint fit with
+    no lens parameters (placements)."""
+    if layout is not None:
+        plane, placed = fit("none")
+        return PlaneFit(plane, plane.homography, "none", candidates or [], note, placements=placed)
+    plane, h = fit_homography_alone(world, image, solver, refine, size)
+    return PlaneFit(plane, h, "none", candidates or [], note)
 
 
 def _select_lens(
-    world: F64, image: F64, solver: Solver, refine: bool, size: tuple[int, int]
+    world: F64,
+    image: F64,
+    solver: Solver,
+    refine: bool,
+    size: tuple[int, int],
+    fit: Fitter,
+    layout: PlacementLayout | None,
 ) -> PlaneFit:
     """Fits every lens model and keeps the simplest whose leave-one-out error no richer one
     beats by LENS_MARGIN."""
-    frame = (float(size[0]), float(size[1]))
     centre = np.array([(size[0] - 1) / 2.0, (size[1] - 1) / 2.0])
     half_diagonal = 0.5 * math.hypot(*size)
     tried: dict[str, tuple[Any, float, float, str]] = {}
     caches: dict[str, tuple[F64, F64]] = {}
+    placed: dict[str, PlacementLayout | None] = {}
     for model in LENS_MODELS:
         try:
-            plane = _core.FittedPlane.fit(world, image, LensKind(model), frame)
+            plane, placed[model] = fit(model)
         except (LensModelError, HomographyError) as e:
             if model == "none":
                 raise
@@ -180,15 +260,16 @@ def _select_lens(
         candidates.append(LensCandidate(model, loo, sigma, verdict))
     gain = tried["none"][1]
     if best == "none":
-        plane, h = fit_homography_alone(world, image, solver, refine, size)
         note = (
             "no lens model: none lowered the leave-one-out error by "
             f"{LENS_MARGIN:.0%} or more ({gain:.3f} px without one)"
         )
-        return PlaneFit(plane, h, "none", candidates, note)
+        return _alone(world, image, solver, refine, size, fit, layout, note, candidates)
     chosen = tried[best]
     note = (
         f"lens model {best}: leave-one-out error {chosen[1]:.3f} px, against {gain:.3f} px "
         "with a homography alone"
     )
-    return PlaneFit(chosen[0], chosen[0].homography, best, candidates, note, caches[best])
+    return PlaneFit(
+        chosen[0], chosen[0].homography, best, candidates, note, caches[best], placed[best]
+    )

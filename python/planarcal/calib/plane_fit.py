@@ -15,6 +15,7 @@ from planarcal import _core
 from planarcal._core import RadialLens
 from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS, LensKind, LensModel
+from planarcal.calib.placements import PlacementLayout, placements_at
 from planarcal.camera import CameraIntrinsics
 from planarcal.errors import IntrinsicsError, LensModelError
 from planarcal.homography import Solver, estimate_homography
@@ -33,6 +34,8 @@ class PlaneFit:
     candidates: list[LensCandidate]
     note: str
     loo_cache: tuple[F64, F64] | None = None
+    placements: PlacementLayout | None = None
+    """The placements fitted with the plane, with their poses (None: one board view)."""
 
     def lens_model(self) -> LensModel | None:
         if self.lens not in LENS_MODELS[1:]:
@@ -87,9 +90,32 @@ def plane_at(
     lens: str,
     radial: RadialLens | None,
     intrinsics: CameraIntrinsics | None,
-) -> Any:
+    layout: PlacementLayout | None = None,
+) -> tuple[Any, PlacementLayout | None]:
     """The core's model of a calibration at known parameters (its covariance on these
-    points): H, the lens model `lens` with its radial lens, or the intrinsics."""
+    points): H, the lens model `lens` with its radial lens, or the intrinsics; with the
+    placements' `layout`, the placements fit's at its poses (and the layout it gives)."""
+    if layout is not None:
+        if size is None:
+            raise LensModelError("a calibration from placements records its image size")
+        ideal = image if intrinsics is None else intrinsics.undistort_points(image)
+        free = lens if lens in LENS_MODELS else "none"
+        if radial is None or free == "none":
+            w, hgt = float(size[0]), float(size[1])
+            radial = RadialLens(((w - 1.0) / 2.0, (hgt - 1.0) / 2.0), 0.5 * math.hypot(w, hgt))
+        return placements_at(h, radial, layout, ideal, free, size)
+    return _plane_at(h, world, image, size, lens, radial, intrinsics), None
+
+
+def _plane_at(
+    h: F64,
+    world: F64,
+    image: F64,
+    size: tuple[int, int] | None,
+    lens: str,
+    radial: RadialLens | None,
+    intrinsics: CameraIntrinsics | None,
+) -> Any:
     if lens == "intrinsics":
         if intrinsics is None:
             raise IntrinsicsError("lens model 'intrinsics' without the intrinsics")

@@ -42,6 +42,7 @@ mod normalize;
 mod orientation;
 mod outline;
 mod part_pose;
+mod placements;
 mod plane_model;
 mod point_failure;
 mod refine;
@@ -77,6 +78,7 @@ pub use part_pose::{
     part_poses, part_samples, LocalMap, PartAxis, PartCountMismatch, PartPose, EDGE_SIGMA_PX,
     MAX_ANGLE_SIGMA_DEG, MIN_ANISOTROPY, SAMPLE_OFFSETS,
 };
+pub use placements::{fit_placements, placements_fit_at, Placed, PlacementsFit, Pose};
 pub use plane_model::{fit_plane, plane_fit_at, LensParams, PlaneFit, PlaneModel};
 pub use point_failure::{PointFailure, PointReport, POINT_FAILURES};
 pub use refine::RefineReport;

@@ -31,7 +31,7 @@ pub type JacP = SMatrix<f64, 2, P>;
 
 /// The loop's settings: Marquardt's tenfold damping steps, which the leave-one-out refits
 /// (started at the full fit) also run.
-const OPTIONS: Options = Options {
+pub(crate) const OPTIONS: Options = Options {
     max_iterations: 200,
     damping: Damping::Factors {
         initial: 1e-4,

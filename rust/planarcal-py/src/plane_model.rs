@@ -5,8 +5,9 @@
 use nalgebra::Matrix2;
 use numpy::{PyArray1, PyArrayMethods};
 use planarcal_core::{
-    fit_plane, leave_one_out, plane_fit_at, predicted_loo_covariance, try_collect, FittedMapper,
-    LensParams, PlaneFit, PlaneModel, Point, PointReport, UncertaintyError,
+    fit_placements, fit_plane, leave_one_out, placements_fit_at, plane_fit_at,
+    predicted_loo_covariance, try_collect, FittedMapper, LensParams, Placed, PlacementsFit,
+    PlaneFit, PlaneModel, Point, PointReport, Pose, UncertaintyError,
 };
 use pyo3::prelude::*;
 
@@ -47,6 +48,49 @@ fn array2<'py>(py: Python<'py>, rows: Vec<f64>, cols: &[usize]) -> PyResult<Boun
     Ok(PyArray1::from_vec(py, rows).reshape(shape)?.into_any())
 }
 
+type PlacementsOut<'py> = (
+    Bound<'py, FittedPlane>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+);
+
+/// The placements of a problem, checked: one per point, each below `count`.
+fn placement_indices(placement: Vec<i64>, n: usize, count: usize) -> PyResult<Vec<usize>> {
+    if placement.len() != n {
+        return Err(invalid(format!(
+            "placement must give one placement per point ({n}), got {}",
+            placement.len()
+        )));
+    }
+    placement
+        .into_iter()
+        .map(|k| {
+            usize::try_from(k)
+                .ok()
+                .filter(|&k| k < count)
+                .ok_or_else(|| invalid(format!("placement {k} is not one of 0 .. {count}")))
+        })
+        .collect()
+}
+
+fn poses_in(poses: Vec<(f64, f64, f64)>) -> PyResult<Vec<Pose>> {
+    poses
+        .into_iter()
+        .map(|(angle, x, y)| {
+            if angle.is_finite() && x.is_finite() && y.is_finite() {
+                Ok(Pose {
+                    angle,
+                    offset: [x, y],
+                })
+            } else {
+                Err(invalid(format!(
+                    "a pose must be finite, got ({angle}, {x}, {y})"
+                )))
+            }
+        })
+        .collect()
+}
+
 fn uncertainty_to_py(e: UncertaintyError) -> PyErr {
     match e {
         UncertaintyError::InvalidPixelSigma(_) | UncertaintyError::InvalidModelSigma(_) => {
@@ -67,6 +111,32 @@ impl FittedPlane {
             world,
             image,
         })
+    }
+
+    /// The plane of a placements fit, with its poses (K x 3: angle rad, offset x, y mm) and
+    /// their covariances (K x 3 x 3).
+    fn placements_out<'py>(
+        py: Python<'py>,
+        fit: PlacementsFit,
+        image: Vec<Point>,
+        size: [f64; 2],
+    ) -> PyResult<PlacementsOut<'py>> {
+        let poses: Vec<f64> = fit
+            .poses
+            .iter()
+            .flat_map(|p| [p.angle, p.offset[0], p.offset[1]])
+            .collect();
+        let cov: Vec<f64> = fit
+            .pose_covariance
+            .iter()
+            .flat_map(|c| c.transpose().iter().copied().collect::<Vec<_>>())
+            .collect();
+        let plane = FittedPlane::new(fit.fit, fit.plane_points, image, size)?;
+        Ok((
+            Bound::new(py, plane)?,
+            array2(py, poses, &[3])?,
+            array2(py, cov, &[3, 3])?,
+        ))
     }
 
     fn plane_fit(&self) -> &PlaneFit {
@@ -151,6 +221,82 @@ impl FittedPlane {
         let (w, d) = (pairs(world, "world")?, pairs(image, "image")?);
         let fit = plane_fit_at(&model, &w, &d, free, size(image_size)).map_err(lens_to_py)?;
         FittedPlane::new(fit, w, d, size(image_size))
+    }
+
+    /// fit_placements(board, image, placement, reference, start, lens, image_size)
+    /// --
+    ///
+    /// Fits H, the lens parameters named by `lens` and the in-plane pose of every placement
+    /// of a board: `board` (N x 2, mm in each placement's board frame), `image` (N x 2, px),
+    /// `placement` (N, the placement of each point), `start` (K x 3: angle rad, offset x, y
+    /// mm, from which each pose is solved). The plane's frame is placement `reference`'s.
+    /// Returns (the plane on the points in the plane's frame, poses K x 3, their covariances
+    /// K x 3 x 3).
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn fit_placements<'py>(
+        py: Python<'py>,
+        board: &Bound<'py, PyAny>,
+        image: &Bound<'py, PyAny>,
+        placement: Vec<i64>,
+        reference: usize,
+        start: Vec<(f64, f64, f64)>,
+        lens: &str,
+        image_size: (f64, f64),
+    ) -> PyResult<PlacementsOut<'py>> {
+        let free = lens_params(lens)?;
+        let (b, d) = (pairs(board, "board")?, pairs(image, "image")?);
+        let start = poses_in(start)?;
+        let placement = placement_indices(placement, b.len(), start.len())?;
+        let placed = Placed {
+            board: &b,
+            image: &d,
+            placement: &placement,
+            count: start.len(),
+            reference,
+        };
+        let fit = py
+            .detach(|| fit_placements(placed, &start, free, size(image_size)))
+            .map_err(lens_to_py)?;
+        FittedPlane::placements_out(py, fit, d, size(image_size))
+    }
+
+    /// at_placements(h, lens, board, image, placement, reference, poses, free, image_size)
+    /// --
+    ///
+    /// fit_placements' result at given parameters and poses (read back from a file).
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn at_placements<'py>(
+        py: Python<'py>,
+        h: &Bound<'py, PyAny>,
+        lens: &Bound<'py, PyLens>,
+        board: &Bound<'py, PyAny>,
+        image: &Bound<'py, PyAny>,
+        placement: Vec<i64>,
+        reference: usize,
+        poses: Vec<(f64, f64, f64)>,
+        free: &str,
+        image_size: (f64, f64),
+    ) -> PyResult<PlacementsOut<'py>> {
+        let free = lens_params(free)?;
+        let model = PlaneModel {
+            h: matrix3(h, "h")?,
+            lens: lens.get().lens,
+        };
+        let (b, d) = (pairs(board, "board")?, pairs(image, "image")?);
+        let poses = poses_in(poses)?;
+        let placement = placement_indices(placement, b.len(), poses.len())?;
+        let placed = Placed {
+            board: &b,
+            image: &d,
+            placement: &placement,
+            count: poses.len(),
+            reference,
+        };
+        let fit = placements_fit_at(&model, &poses, placed, free, size(image_size))
+            .map_err(lens_to_py)?;
+        FittedPlane::placements_out(py, fit, d, size(image_size))
     }
 
     /// with_model_sigma(sigma_px)

@@ -1,0 +1,271 @@
+"""One calibration from several placements of a board: the board laid flat at K places on a
+work plane larger than it, a fixed camera, one image (or one detection) per placement.
+
+Each placement's board frame lies in the plane's at an unknown rotation and translation (its
+pose); the plane's frame is the reference placement's board frame. The core
+(``_core.FittedPlane.fit_placements``, planarcal_core::placements) fits the one homography and
+lens jointly with every pose, so each placement's points constrain the lens where they lie,
+and its covariance of H and the lens is the marginal one: a pixel far from the reference
+carries how well its placement is tied to it.
+
+This module holds what the Calibration keeps of them (``PlacementLayout``: the board points,
+which placement each belongs to, the poses) and shows the user (``Placement``), how the poses
+start (each placement's pixels mapped through the reference's own homography, then the rigid
+fit of its board points to them), and the check that refuses a placement the plane cannot
+explain: a board not flat on the plane (lifted on one side, lying on a part) or a detection
+that is wrong, named instead of averaged in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planarcal import _core
+from planarcal.calib.lens_model import LensKind
+from planarcal.errors import HomographyError, PlacementError
+from planarcal.homography import estimate_homography, transform_points
+
+F64 = NDArray[np.float64]
+
+OUTLIER_RATIO = 3.0
+"""A placement whose residuals' RMS is this many times the other placements' pooled RMS..."""
+OUTLIER_FLOOR_PX = 0.1
+"""... and above this (px) is refused: the plane and lens that fit the others cannot show it
+where it was seen."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PlacementLayout:
+    """The placements as the fit sees them: each point's board position (mm, its board's
+    frame), its placement, the reference placement and the poses (K x 3: angle rad, offset x,
+    y mm: plane = R(angle) board + offset) with their covariances (K x 3 x 3)."""
+
+    board_mm: F64
+    placement: NDArray[np.intp]
+    reference: int
+    poses: F64
+    pose_covariance: F64
+
+    @property
+    def count(self) -> int:
+        return len(self.poses)
+
+    def plane_points(self, board_mm: F64 | None = None) -> F64:
+        """The board points (these, or the layout's) in the plane's frame."""
+        b = self.board_mm if board_mm is None else board_mm
+        pose = self.poses[self.placement]
+        c, s = np.cos(pose[:, 0]), np.sin(pose[:, 0])
+        return np.ascontiguousarray(
+            np.stack(
+                [c * b[:, 0] - s * b[:, 1] + pose[:, 1], s * b[:, 0] + c * b[:, 1] + pose[:, 2]],
+                axis=1,
+            )
+        )
+
+    def with_poses(self, poses: F64, covariance: F64) -> PlacementLayout:
+        return dataclasses.replace(self, poses=poses, pose_covariance=covariance)
+
+    def scaled(self, scale: F64) -> PlacementLayout:
+        """The layout with board millimetres scaled by (sx, sy) (a printer's scale, see
+        Calibration.rescaled); the poses are refitted by whoever uses it."""
+        return dataclasses.replace(self, board_mm=np.ascontiguousarray(self.board_mm * scale))
+
+
+@dataclasses.dataclass(frozen=True)
+class Placement:
+    """One placement of the board, as the calibration fitted it."""
+
+    index: int
+    """Its number among the placements, 0-based (the order given)."""
+    name: str
+    """The image it was seen in (a file name), or "placement k"."""
+    image_size: tuple[int, int]
+    """(width, height) of its image, px."""
+    ids: NDArray[np.intp]
+    """The board's ids of the points seen (indices into board.world_points())."""
+    board_mm: F64
+    """Those points in the board's frame, mm."""
+    image_px: F64
+    """Where they were seen, px."""
+    plane_mm: F64
+    """Where they lie in the plane's frame, mm."""
+    angle_deg: float
+    """The board's x axis from the plane's, degrees (counter-clockwise from x to y)."""
+    offset_mm: tuple[float, float]
+    """Where the board's origin lies in the plane, mm."""
+    angle_std_deg: float
+    """1-sigma of the angle, degrees (0 for the reference, which defines the frame)."""
+    offset_std_mm: float
+    """1-sigma of the offset (RMS distance), mm."""
+    rms_px: float
+    """RMS of its points' residuals under the joint fit, px."""
+    partial: bool
+    """Whether only part of the board was seen."""
+    reference: bool
+    """Whether its board frame is the plane's."""
+
+    def describe(self) -> str:
+        where = (
+            "the reference: its board frame is the plane's"
+            if self.reference
+            else (
+                f"at ({self.offset_mm[0]:.2f}, {self.offset_mm[1]:.2f}) mm, turned "
+                f"{self.angle_deg:.3f} deg (+/- {self.offset_std_mm:.3f} mm, "
+                f"{self.angle_std_deg:.4f} deg)"
+            )
+        )
+        part = ", partial view" if self.partial else ""
+        return (
+            f"placement {self.index} ({self.name}): {len(self.ids)} points{part}, {where}; "
+            f"residuals {self.rms_px:.3f} px RMS"
+        )
+
+
+def start_poses(
+    board_mm: F64, image_px: F64, placement: NDArray[np.intp], count: int, reference: int
+) -> F64:
+    """Poses to start the joint fit from (K x 3): each placement's pixels mapped to the plane
+    through the reference's own homography, then the rigid transform that best carries its
+    board points there. The lens is ignored, so far placements start some millimetres off;
+    the fit's Gauss-Newton steps on each pose take them the rest of the way."""
+    ref = placement == reference
+    h = estimate_homography(board_mm[ref], image_px[ref], "normalized_dlt", True)
+    to_plane = np.linalg.inv(h)
+    out = np.zeros((count, 3))
+    for k in range(count):
+        if k == reference:
+            continue
+        mine = placement == k
+        out[k] = rigid_fit(board_mm[mine], transform_points(to_plane, image_px[mine]))
+    return out
+
+
+def rigid_fit(src: F64, dst: F64) -> tuple[float, float, float]:
+    """The rotation and translation (angle rad, x, y) carrying src onto dst in least squares
+    (Kabsch in 2-D, no reflection)."""
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    a, b = src - cs, dst - cd
+    # angle = atan2(sum cross, sum dot): the 2-D Procrustes solution.
+    angle = math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])), float(np.sum(a * b)))
+    c, s = math.cos(angle), math.sin(angle)
+    t = cd - np.array([c * cs[0] - s * cs[1], s * cs[0] + c * cs[1]])
+    return angle, float(t[0]), float(t[1])
+
+
+def fit_placements(
+    layout: PlacementLayout, image_px: F64, lens: str, size: tuple[int, int]
+) -> tuple[_core.FittedPlane, PlacementLayout]:
+    """The core's joint fit of the plane with lens model `lens` and every pose, started at the
+    layout's poses; the plane and the layout with the fitted poses."""
+    plane, poses, cov = _core.FittedPlane.fit_placements(
+        layout.board_mm,
+        image_px,
+        layout.placement.tolist(),
+        layout.reference,
+        [tuple(p) for p in layout.poses],
+        LensKind(lens),
+        (float(size[0]), float(size[1])),
+    )
+    return plane, layout.with_poses(np.asarray(poses), np.asarray(cov))
+
+
+def placements_at(
+    h: F64,
+    radial: _core.RadialLens,
+    layout: PlacementLayout,
+    image_px: F64,
+    lens: str,
+    size: tuple[int, int],
+) -> tuple[_core.FittedPlane, PlacementLayout]:
+    """The core's model of a placements fit at known parameters and poses (a file read back,
+    a calibration rescaled to another frame size), with its covariance on these points."""
+    plane, poses, cov = _core.FittedPlane.at_placements(
+        h,
+        radial,
+        layout.board_mm,
+        image_px,
+        layout.placement.tolist(),
+        layout.reference,
+        [tuple(p) for p in layout.poses],
+        LensKind(lens),
+        (float(size[0]), float(size[1])),
+    )
+    return plane, layout.with_poses(np.asarray(poses), np.asarray(cov))
+
+
+def residual_rms(image_px: F64, predicted_px: F64, placement: NDArray[np.intp], count: int) -> F64:
+    """Each placement's RMS residual (px) between its seen and predicted pixels."""
+    d2 = np.sum((image_px - predicted_px) ** 2, axis=1)
+    return np.array([math.sqrt(float(np.mean(d2[placement == k])) / 2.0) for k in range(count)])
+
+
+def check_placements(
+    layout: PlacementLayout,
+    image_px: F64,
+    predicted_px: F64,
+    to_plane: Callable[[F64], F64],
+    names: Sequence[str],
+) -> F64:
+    """Each placement's residual RMS (px, per coordinate); PlacementError naming a placement
+    the joint fit cannot explain (OUTLIER_RATIO times the others' RMS and above
+    OUTLIER_FLOOR_PX), with what its misfit looks like (``to_plane`` maps pixels to the plane
+    through the joint fit)."""
+    count = layout.count
+    rms = residual_rms(image_px, predicted_px, layout.placement, count)
+    if count < 2:
+        return rms
+    d2 = np.sum((image_px - predicted_px) ** 2, axis=1)
+    worst = int(np.argmax(rms))
+    pooled = math.sqrt(float(np.mean(d2[layout.placement != worst])) / 2.0)
+    if not (rms[worst] > OUTLIER_RATIO * pooled and rms[worst] > OUTLIER_FLOOR_PX):
+        return rms
+    mine = layout.placement == worst
+    raise PlacementError(
+        f"placement {worst} ({names[worst]}) does not fit the plane the others define: its "
+        f"points miss the joint fit by {rms[worst]:.3f} px RMS, the others' by "
+        f"{pooled:.3f} px; {misfit(layout.board_mm[mine], to_plane(image_px[mine]))}. Take "
+        "that image again with the board flat on the plane, or leave it out",
+        placement=worst,
+    )
+
+
+def misfit(board_mm: F64, seen_mm: F64) -> str:
+    """What a placement's misfit looks like, from the homography carrying its board points
+    to where the plane puts its pixels (a correct, flat placement's is a rotation and a
+    translation): a mirror, a scale (lying on something), a squeeze (lifted on one side), or
+    points that fit no one board (a wrong detection)."""
+    try:
+        g = estimate_homography(board_mm, seen_mm, "normalized_dlt", True)
+    except HomographyError:
+        return "its points do not lie on one board as described: a wrong detection"
+    spread = float(np.sqrt(np.mean(np.sum((transform_points(g, board_mm) - seen_mm) ** 2, 1))))
+    step = np.hypot(*np.diff(board_mm, axis=0).T)
+    pitch = float(np.median(step[step > 0])) if (step > 0).any() else 1.0
+    if spread > 0.05 * pitch:
+        return (
+            "its points do not fit one board seen through one homography either: a wrong "
+            "detection (points matched to the wrong ids)"
+        )
+    a = g[:2, :2] / g[2, 2]
+    det = float(np.linalg.det(a))
+    if det < 0:
+        return "it is seen mirrored: a wrong detection or board description"
+    sv = np.linalg.svd(a, compute_uv=False)
+    scale = math.sqrt(det)
+    squeeze = float(sv[1] / sv[0])
+    if abs(scale - 1.0) > 2.0 * (1.0 - squeeze):
+        side = "nearer the camera: lying on something" if scale > 1 else "farther than it"
+        return (
+            f"it is seen {abs(scale - 1.0):.2%} {'larger' if scale > 1 else 'smaller'} than a "
+            f"board on the plane ({side}), not flat on the plane"
+        )
+    tilt = math.degrees(math.acos(min(1.0, squeeze)))
+    return (
+        f"it is seen squeezed by {1.0 - squeeze:.2%} across one direction, as a board tilted "
+        f"about {tilt:.1f} degrees: lifted on one side, not flat on the plane"
+    )
