@@ -1029,8 +1029,15 @@ class Calibration:
         for points that cover only part of the image, what the rest is predicted at (what
         ``str(cal.summary())`` prints; the full report is planarcal.report.summary_text)."""
         s = self.summary() if summary is None else summary
+        placements = self._fit.placements
         if self.board is None:
             points = f"{s.n_points} points (no board recorded)"
+        elif placements is not None:
+            points = (
+                f"{placements.count} placements of {self.board.describe()}: {s.n_points} "
+                f"{self.board.point_name}s (the plane's frame is placement "
+                f"{placements.reference}'s board frame)"
+            )
         else:
             seen = len(self._world)
             total = self.board.n_points
@@ -1117,6 +1124,8 @@ class Calibration:
                 c.robot_frame,
                 c.created,
                 ids=c.point_ids,
+                placement_names=c.placement_names,
+                placement_partial=c.placement_partial,
             )
             errors_px = cal.reprojection_errors_px
             calibration_file.check_residuals(errors_px, c.residuals, source)

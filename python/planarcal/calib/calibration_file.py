@@ -20,7 +20,15 @@ Version 5 reads every board type: ``board`` is the board's ``to_dict()`` with it
 them for a whole board, those seen for a partial view; null without a board), re-derived
 from the world points on load. Its summary adds the points' coverage of the image and the
 predicted error beyond them (calib.extrapolation). A version 4 file's board is a circle grid
-(no ``type``); it loads as before."""
+(no ``type``); it loads as before.
+
+Version 6 adds ``placements``: for a calibration from several placements of the board
+(Calibration.from_detections), the reference placement, each placement's name, image size,
+number of points, whether it is a partial view and its fitted in-plane pose, and
+``point_placement``, the placement of each point (null for a calibration from one view). Its
+world points are in the plane's frame: each must be its board point (``points.ids``) carried
+by its placement's pose, and the homography, lens and poses must reproduce the residuals the
+file records; the covariance (the error bars) is rebuilt with the poses free, as fitted."""
 
 from __future__ import annotations
 
@@ -34,7 +42,7 @@ import os
 import re
 import reprlib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeGuard
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,9 +53,11 @@ from planarcal.bounded_read import read_regular_file
 from planarcal.calib.board import MAX_BOARD_DOTS_PER_SIDE
 from planarcal.calib.board_points import POINT_TOLERANCE_REL, match_board_points
 from planarcal.calib.boards import BOARD_TYPES, Board, board_from_dict
-from planarcal.calib.json_number import json_number
+from planarcal.calib.json_number import is_json_int, is_json_real, json_number
 from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS
+from planarcal.calib.placement_file import placements_from_dict, placements_to_dict
+from planarcal.calib.placements import PlacementLayout
 from planarcal.calib.plane_fit import PlaneFit, plane_at
 from planarcal.camera import CameraIntrinsics
 from planarcal.camera.intrinsics import MAX_IMAGE_SIDE_PX
@@ -72,12 +82,14 @@ if TYPE_CHECKING:
 F64 = NDArray[np.float64]
 
 FILE_FORMAT = CALIBRATION_FORMAT
-FILE_VERSION = 5
-READS_VERSIONS = (1, 2, 3, 4, 5)
+FILE_VERSION = 6
+READS_VERSIONS = (1, 2, 3, 4, 5, 6)
 ROBOT_FRAME_SINCE = 3
 DIGEST_SINCE = 4
 BOARD_TYPES_SINCE = 5
 """The first version whose board has a type (and points their ids)."""
+PLACEMENTS_SINCE = 6
+"""The first version that records placements."""
 
 SUMMARY_SINCE_5 = ("covered_share", "covered_std_mm", "image_std_mm")
 """The summary's fields a version 5 file adds (the points' coverage of the image)."""
@@ -123,9 +135,10 @@ FIELDS = (
     "points",
     "summary",
     "robot_frame",
+    "placements",
     "digest",
 )
-"""Every field of a version 4 or 5 file, in the order written; older versions wrote some of
+"""Every field of a version 6 file, in the order written; older versions wrote some of
 them."""
 ALWAYS = ("solver", "refine", "homography_world_mm_to_image_px", "points")
 """The fields every version has."""
@@ -201,6 +214,8 @@ class FileContents:
     created: str | None = None
     version: int = FILE_VERSION
     point_ids: NDArray[np.intp] | None = None
+    placement_names: tuple[str, ...] = ()
+    placement_partial: tuple[bool, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -253,11 +268,13 @@ def calibration_to_dict(
             figures = {k: v for k, v in figures.items() if k not in SUMMARY_SINCE_5}
         content["summary"] = {k: json_number(v) for k, v in figures.items()}
     content["robot_frame"] = None if cal.robot_frame is None else cal.robot_frame.to_dict()
+    if version >= PLACEMENTS_SINCE:
+        content["placements"] = placements_to_dict(cal)
     # A board that does not describe the points, or points beyond the image (the API takes
     # both: Calibration(world, image, board=..., image_size=...)), would be refused on load
     # as edited.
     problem = image_points_problem(cal.image_points, cal.image_size)
-    if problem is None and cal.board is not None:
+    if problem is None and cal.board is not None and cal._fit.placements is None:
         problem = board_points_problem(cal.board, cal.world_points, cal.world_scale)
     if problem is not None:
         raise CalibrationFileError(f"the calibration cannot be saved: {problem}")
@@ -345,10 +362,26 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
         raise CalibrationFileError(f"{source}: refine must be true or false, got {_show(refine)}")
     image_size = _image_size(data.get("image_size_px"), source)
     _check_in_image(image, image_size, source)
-    board = _board(data.get("board"), len(world), version, source)
-    fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
-    point_ids = _check_on_board(board, world, world_scale, source)
-    _check_ids(points.get("ids"), point_ids, board, version, source)
+    # Each placement is one view of the board; their points together may outnumber it.
+    one_view = len(world) if data.get("placements") is None else 0
+    board = _board(data.get("board"), one_view, version, source)
+    placed = placements_from_dict(
+        data.get("placements"), board, points.get("ids"), len(world), image_size, source
+    )
+    layout = None
+    if placed is None:
+        fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
+        point_ids = _check_on_board(board, world, world_scale, source)
+        _check_ids(points.get("ids"), point_ids, board, version, source)
+    else:
+        assert board is not None
+        point_ids = placed.ids
+        world_scale = _world_scale(data, source)
+        layout = placed.layout(board, world_scale)
+        _check_placed_points(layout, world, source)
+        fit, intrinsics, world_scale = _fit_from_dict(
+            data, h, world, image, image_size, source, layout
+        )
     robot_frame = _robot_frame(
         data.get("robot_frame"), source, None if board is None else board.point_name
     )
@@ -367,6 +400,8 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
         _created(data, version, source),
         version,
         point_ids,
+        () if placed is None else placed.names,
+        () if placed is None else placed.partial,
     )
 
 
@@ -378,16 +413,16 @@ def check_consistent(cal: Calibration, data: dict[str, Any], source: str) -> Non
     when re-derived (a file that could not be saved again), is named. Files of version 4 must
     also have every field to_dict writes, and no other, at every level."""
     version = data.get("version")
-    strict = _is_int(version) and version >= DIGEST_SINCE
+    strict = is_json_int(version) and version >= DIGEST_SINCE
     derived = calibration_to_dict(
-        cal, summary=False, version=version if _is_int(version) else FILE_VERSION
+        cal, summary=False, version=version if is_json_int(version) else FILE_VERSION
     )
     for key, value in derived.items():
         if key in ("format", "version", "created", "planarcal_version") or key not in data:
             continue
         _agree(data[key], value, key, strict, source)
     _check_summary(
-        cal, data["summary"], strict, version if _is_int(version) else FILE_VERSION, source
+        cal, data["summary"], strict, version if is_json_int(version) else FILE_VERSION, source
     )
 
 
@@ -559,7 +594,7 @@ def _check_format(data: dict[str, Any], source: str) -> int:
             f"{_show(file_format)}, not {FILE_FORMAT!r}); make one with `planarcal calibrate`"
         )
     version = data.get("version")
-    if not _is_int(version) or version not in READS_VERSIONS:
+    if not is_json_int(version) or version not in READS_VERSIONS:
         raise CalibrationFileError(
             f"{source} is calibration file version {_show(version)}; this planarcal "
             f"({_core.__version__}) reads versions "
@@ -573,10 +608,14 @@ def _check_fields(data: dict[str, Any], version: int, source: str) -> None:
     the file's (a digest or a registration in an older file: its version was edited), or a
     missing one of those its version always writes (a version 3 file's robot_frame, every
     field of a version 4 file)."""
+    since = {
+        "robot_frame": ROBOT_FRAME_SINCE,
+        "digest": DIGEST_SINCE,
+        "placements": PLACEMENTS_SINCE,
+    }
     for key in FIELDS if version >= DIGEST_SINCE else ALWAYS:
-        if key != "summary":  # whose absence _stored_residuals explains
+        if key != "summary" and version >= since.get(key, 0):  # summary: _stored_residuals
             _field(data, key, source)
-    since = {"robot_frame": ROBOT_FRAME_SINCE, "digest": DIGEST_SINCE}
     for key, first in since.items():
         # A null registration is none, as in the versions before it.
         if key in data and version < first and not (key == "robot_frame" and data[key] is None):
@@ -670,7 +709,7 @@ def _check_ids(
                 "board or the points were edited"
             )
         return
-    if not (isinstance(stored, list) and len(stored) == len(ids) and all(map(_is_int, stored))):
+    if not (isinstance(stored, list) and len(stored) == len(ids) and all(map(is_json_int, stored))):
         raise CalibrationFileError(
             f"{source}: points.ids must be a list of {len(ids)} point ids (whole numbers), "
             f"got {_show(stored)}"
@@ -698,7 +737,7 @@ def _image_size(size: Any, source: str) -> tuple[int, int] | None:
     if (
         not isinstance(size, list | tuple)
         or len(size) != 2
-        or not all(_is_int(v) and 1 <= v <= MAX_IMAGE_SIDE_PX for v in size)
+        or not all(is_json_int(v) and 1 <= v <= MAX_IMAGE_SIDE_PX for v in size)
     ):
         raise CalibrationFileError(
             f"{source}: image_size_px must be [width, height], two whole numbers of pixels "
@@ -760,11 +799,11 @@ _TYPE_WORDS = {
 def _json_type_is(value: Any, want: str) -> bool:
     """Whether a board field's JSON value is of the kind `want` (a key of _TYPE_WORDS)."""
     if want == "count":
-        return _is_int(value) and 2 <= value <= MAX_BOARD_DOTS_PER_SIDE
+        return is_json_int(value) and 2 <= value <= MAX_BOARD_DOTS_PER_SIDE
     if want == "mm":
-        return _is_real(value)
+        return is_json_real(value)
     if want == "mm or null":
-        return value is None or _is_real(value)
+        return value is None or is_json_real(value)
     if want == "bool":
         return isinstance(value, bool)
     if want == "bool or null":
@@ -818,7 +857,7 @@ def _check_robot_values(robot_data: Any, source: str) -> None:
         "robot_frame.plane_to_robot",
     )
     outlier = robot_data.get("outlier_mm")
-    if outlier is not None and not (_is_real(outlier) and 0 < outlier <= MAX_ROBOT_MM):
+    if outlier is not None and not (is_json_real(outlier) and 0 < outlier <= MAX_ROBOT_MM):
         raise CalibrationFileError(
             f"{source}: robot_frame.outlier_mm must be null or a number of mm from 0 to "
             f"{MAX_ROBOT_MM:g}, got {_show(outlier)}"
@@ -834,7 +873,7 @@ def _check_robot_values(robot_data: Any, source: str) -> None:
             f"{source}: robot_frame.model must be a string, got {_show(robot_data.get('model'))}"
         )
     outliers = robot_data.get("outliers")
-    if not (isinstance(outliers, list) and all(_is_int(i) for i in outliers)):
+    if not (isinstance(outliers, list) and all(is_json_int(i) for i in outliers)):
         raise CalibrationFileError(
             f"{source}: robot_frame.outliers must be a list of point indices, got {_show(outliers)}"
         )
@@ -896,7 +935,7 @@ def _agree(stored: Any, derived: Any, path: str, strict: bool, source: str) -> N
                 f"{source}: {path} is {_show(stored)} where the file's other fields give "
                 f"{_show(derived)} (edited or corrupt)"
             )
-    elif _is_int(derived) and not _is_int(stored):
+    elif is_json_int(derived) and not is_json_int(stored):
         # A count or an id: a whole number, as written (3.0 is not point 3).
         raise CalibrationFileError(
             f"{source}: {path} must be a whole number, got {_show(stored)} (edited or corrupt)"
@@ -911,7 +950,7 @@ def _agree_number(stored: Any, derived: float, path: str, source: str) -> None:
             f"{source}: {path} overflows when re-derived from the file's other values "
             "(numbers beyond any calibration's: edited or corrupt)"
         )
-    if not _is_real(stored):
+    if not is_json_real(stored):
         raise CalibrationFileError(
             f"{source}: {path} must be a number, got {_show(stored)} (edited or corrupt)"
         )
@@ -952,7 +991,7 @@ def _check_summary(
         value = _field(summary, key, source, "summary.")
         if key in derived:
             _agree(value, derived[key], f"summary.{key}", strict, source)
-        elif not (value is None or (_is_real(value) and value >= 0)):
+        elif not (value is None or (is_json_real(value) and value >= 0)):
             raise CalibrationFileError(
                 f"{source}: summary.{key} must be a number >= 0 or null, got {_show(value)}"
             )
@@ -983,7 +1022,7 @@ def _stored_residuals(data: dict[str, Any], n_points: int, source: str) -> Store
             f"{source} has no summary (its reprojection errors, which a loaded calibration "
             "is checked against)"
         )
-    if summary.get("n_points") != n_points or not _is_int(summary.get("n_points")):
+    if summary.get("n_points") != n_points or not is_json_int(summary.get("n_points")):
         raise CalibrationFileError(
             f"{source}: summary.n_points is {_show(summary.get('n_points'))} but the file "
             f"holds {n_points} points"
@@ -991,7 +1030,7 @@ def _stored_residuals(data: dict[str, Any], n_points: int, source: str) -> Store
     values = []
     for key in ("mean_px", "rms_px", "max_px", "min_px"):
         value = summary.get(key)
-        if not (_is_real(value) and value >= 0):
+        if not (is_json_real(value) and value >= 0):
             raise CalibrationFileError(
                 f"{source}: summary.{key} must be a reprojection error in px (a number >= 0), "
                 f"got {_show(value)}"
@@ -1010,7 +1049,7 @@ def _reals(value: Any, shape: tuple[int | None, ...], where: str, what: str) -> 
     def fill(item: Any, level: int, index: tuple[int, ...]) -> None:
         at = "".join(f"[{i}]" for i in index) or "it"
         if level == len(shape):
-            if not _is_real(item):
+            if not is_json_real(item):
                 raise CalibrationFileError(
                     f"{where}: {what}: {at} is {_show(item)}, not a finite number"
                 )
@@ -1027,20 +1066,6 @@ def _reals(value: Any, shape: tuple[int | None, ...], where: str, what: str) -> 
 
     fill(value, 0, ())
     return out
-
-
-def _is_int(value: Any) -> TypeGuard[int]:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _is_real(value: Any) -> TypeGuard[int | float]:
-    """A JSON number (int or float, never a bool) that is a finite float."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return False
-    try:
-        return math.isfinite(float(value))
-    except OverflowError:
-        return False
 
 
 def _json_type(value: Any) -> str:
@@ -1106,6 +1131,7 @@ def _fit_from_dict(
     image: F64,
     size: tuple[int, int] | None,
     source: str,
+    layout: PlacementLayout | None = None,
 ) -> tuple[PlaneFit, CameraIntrinsics | None, tuple[float, float]]:
     """The fit a file describes, checked against its points; CalibrationFileError if not.
     Version 1 files have none of these fields: no lens, the nominal world scale."""
@@ -1118,13 +1144,7 @@ def _fit_from_dict(
         )
     if not isinstance(note, str):
         raise CalibrationFileError(f"{source}: lens_note must be a string, got {_show(note)}")
-    scale = data.get("world_scale", [1.0, 1.0])
-    world_scale_array = _reals(scale, (2,), source, "world_scale must be two factors")
-    if not (world_scale_array > 0).all():
-        raise CalibrationFileError(
-            f"{source}: world_scale must be two factors > 0, got {_show(scale)}"
-        )
-    world_scale = (float(world_scale_array[0]), float(world_scale_array[1]))
+    world_scale = _world_scale(data, source)
     candidates = _lens_candidates(data.get("lens_candidates", []), source)
     intrinsics = None
     radial = None  # a lens model's own
@@ -1141,13 +1161,38 @@ def _fit_from_dict(
     elif lens != "none":
         radial = _radial_lens(data.get("lens"), lens, size, source)
     try:
-        plane, _ = plane_at(h, world, image, size, lens, radial, intrinsics)
+        plane, layout = plane_at(h, world, image, size, lens, radial, intrinsics, layout)
     except (ArgumentError, IntrinsicsError, LensModelError, HomographyError) as e:
         raise CalibrationFileError(
             f"{source}: its homography, lens (or intrinsics) and points cannot be used "
             f"together: {e}"
         ) from None
-    return PlaneFit(plane, h, lens, candidates, note), intrinsics, world_scale
+    return PlaneFit(plane, h, lens, candidates, note, placements=layout), intrinsics, world_scale
+
+
+def _world_scale(data: dict[str, Any], source: str) -> tuple[float, float]:
+    scale = data.get("world_scale", [1.0, 1.0])
+    world_scale_array = _reals(scale, (2,), source, "world_scale must be two factors")
+    if not (world_scale_array > 0).all():
+        raise CalibrationFileError(
+            f"{source}: world_scale must be two factors > 0, got {_show(scale)}"
+        )
+    return (float(world_scale_array[0]), float(world_scale_array[1]))
+
+
+def _check_placed_points(layout: PlacementLayout, world: F64, source: str) -> None:
+    """CalibrationFileError unless each world point is its board point carried by its
+    placement's pose (to POINT_TOLERANCE_REL of the board's extent)."""
+    placed = layout.plane_points()
+    reach = float(np.abs(layout.board_mm).max()) + 1.0
+    off = np.hypot(*(placed - world).T)
+    bad = np.flatnonzero(~(off <= POINT_TOLERANCE_REL * reach))
+    if bad.size:
+        k = int(bad[0])
+        raise CalibrationFileError(
+            f"{source}: points.world_mm[{k}] is not its board point carried by its "
+            f"placement's pose ({off[k]:.3g} mm off): the points, ids or placements were edited"
+        )
 
 
 def _radial_lens(lens_data: Any, lens: str, size: tuple[int, int] | None, source: str) -> Any:
@@ -1166,7 +1211,7 @@ def _radial_lens(lens_data: Any, lens: str, size: tuple[int, int] | None, source
     values = {}
     for key in ("scale_px", "k1", "k2"):
         value = _field(lens_data, key, source, "lens.")
-        if not _is_real(value):
+        if not is_json_real(value):
             raise CalibrationFileError(
                 f"{source}: lens.{key} must be a finite number, got {_show(value)}"
             )
@@ -1212,7 +1257,7 @@ def _lens_candidates(cand_data: Any, source: str) -> list[LensCandidate]:
         errors = []
         for key in ("loo_mean_px", "sigma_px"):
             value = c.get(key)
-            if not (value is None or _is_real(value)):
+            if not (value is None or is_json_real(value)):
                 raise CalibrationFileError(
                     f"{where}.{key} must be a number or null, got {_show(value)}"
                 )

@@ -1,9 +1,10 @@
-"""Numbers for JSON: NaN and the infinities, which JSON cannot hold, become null."""
+"""Numbers for JSON: NaN and the infinities, which JSON cannot hold, become null; and what a
+parsed JSON value must be to be a whole number or a finite real (never a bool)."""
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, TypeGuard
 
 
 def json_number(v: Any) -> Any:
@@ -11,3 +12,18 @@ def json_number(v: Any) -> Any:
     if isinstance(v, float) and not math.isfinite(v):
         return None
     return v
+
+
+def is_json_int(value: Any) -> TypeGuard[int]:
+    """A JSON whole number (never a bool, which Python counts as an int)."""
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def is_json_real(value: Any) -> TypeGuard[int | float]:
+    """A JSON number (int or float, never a bool) that is a finite float."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False

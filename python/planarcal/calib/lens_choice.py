@@ -128,8 +128,8 @@ def fit_with_lens(
         note = f"lens model {lens} (asked for)"
         if coverage < MIN_LENS_COVERAGE:
             note += (
-                f"; the {_points_word(layout)} reach only {coverage:.0%} of the way from the "
-                "image centre to its corners (from the nearest point to the farthest), too "
+                f"; the {_reach_words(layout)} only {coverage:.0%} of the way from the "
+                "image centre to its corners (from its nearest point to its farthest), too "
                 "little to determine the distortion"
             )
         return PlaneFit(plane, plane.homography, lens, [], note, placements=placed)
@@ -142,8 +142,8 @@ def fit_with_lens(
             size,
             fit,
             layout,
-            f"no lens model: the {_points_word(layout)} reach only {coverage:.0%} of the way "
-            f"from the image centre to its corners (from the nearest point to the farthest; "
+            f"no lens model: the {_reach_words(layout)} only {coverage:.0%} of the way "
+            f"from the image centre to its corners (from its nearest point to its farthest; "
             f"at least {MIN_LENS_COVERAGE:.0%} needed), too little to determine the "
             "distortion; let the board fill more of the view",
         )
@@ -183,8 +183,8 @@ def _fitter(
     return joint
 
 
-def _points_word(layout: PlacementLayout | None) -> str:
-    return "board's points" if layout is None else "placements' points"
+def _reach_words(layout: PlacementLayout | None) -> str:
+    return "board reaches" if layout is None else "placements reach"
 
 
 def _alone(
