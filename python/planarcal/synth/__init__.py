@@ -40,12 +40,15 @@ The modules, from the bottom up:
 * ``paper``: the paper's setup (``PAPER_*``), :func:`paper_scene`,
   :func:`random_paper_scene`.
 * ``corpus``: :data:`BOARD_VARIANTS`, :func:`board_variant`, :func:`board_variants`.
+* ``cell``: :func:`render_cell`, a work cell several boards wide with the board photographed
+  at several placements (:class:`Cell`), and :func:`mirrored_detection`.
 * ``demo`` and ``paper_data``: the built-in demo and the paper's published numbers.
 """
 
 from __future__ import annotations
 
 from planarcal.synth.camera import CameraModel, PlanePose, View
+from planarcal.synth.cell import Cell, CellPlacement, mirrored_detection, render_cell
 from planarcal.synth.corpus import (
     BOARD_VARIANTS,
     CHARUCO_VARIANTS,
@@ -87,6 +90,8 @@ __all__ = [
     "VARIANTS_BY_KIND",
     "BoardVariant",
     "CameraModel",
+    "Cell",
+    "CellPlacement",
     "MarkKind",
     "ObjectKind",
     "PaperScene",
@@ -99,8 +104,10 @@ __all__ = [
     "board_variants",
     "hand",
     "jpeg",
+    "mirrored_detection",
     "paper_scene",
     "printed_marks",
     "random_paper_scene",
+    "render_cell",
     "render_scene",
 ]
