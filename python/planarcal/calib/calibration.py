@@ -54,7 +54,6 @@ from planarcal.calib.boards import BOARD_TYPES, Board, is_board
 from planarcal.calib.calibration_file import FILE_FORMAT, FILE_VERSION, READS_VERSIONS
 from planarcal.calib.detection import detect_board
 from planarcal.calib.detector_options import check_detector_options
-from planarcal.calib.detector_options import detector_options as detector_options_of
 from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX, ErrorBudget, with_budget
 from planarcal.calib.extrapolation import Extrapolation, extrapolation
 from planarcal.calib.leave_one_out import homography_leave_one_out
@@ -70,6 +69,7 @@ from planarcal.calib.lens_model import LENS_MODELS, LensModel
 from planarcal.calib.placement_set import (
     calibration_placements,
     checked_reference,
+    detect_placement,
     placement_layout,
     placement_names,
     same_camera_and_board,
@@ -80,7 +80,6 @@ from planarcal.camera import CameraIntrinsics, plane_pose, points_at_height
 from planarcal.errors import (
     ArgumentError,
     BoardError,
-    BoardNotFoundError,
     CalibrationFileError,
     FrameSizeError,
     HomographyError,
@@ -449,9 +448,10 @@ class Calibration:
                 f"board must be one of planarcal's boards ({', '.join(BOARD_TYPES)}), got "
                 f"{type(board).__name__}"
             )
-        if isinstance(images, (str, os.PathLike)) or not isinstance(images, Sequence):
+        if isinstance(images, (str, os.PathLike)) or not isinstance(images, Sequence) or not images:
             raise ArgumentError(
-                f"images must be a sequence of images or paths, got {type(images).__name__}"
+                "images must be a non-empty sequence of images or paths, got "
+                f"{type(images).__name__}"
             )
         check_detector_options(board.kind, detector_options)
         if names is None:
@@ -459,21 +459,14 @@ class Calibration:
                 Path(im).name if isinstance(im, (str, os.PathLike)) else f"placement {k}"
                 for k, im in enumerate(images)
             ]
-        # A placement other than the reference may lie at any angle: its pose takes the
-        # board's turn, so a turned board is no question there (the reference's frame is the
-        # plane's, so its orientation stays the user's to settle).
-        turnable = "turned" in detector_options_of(board.kind)
-        detections = []
-        for k, im in enumerate(images):
-            options = dict(detector_options)
-            if turnable and k != reference and "turned" not in options:
-                options["turned"] = True
-            try:
-                detections.append(detect_board(im, board, **options))
-            except BoardNotFoundError as e:
-                raise type(e)(f"placement {k} ({names[k]}): {e}", e.diagnostics) from None
+        labels = placement_names(names, len(images))
+        reference = checked_reference(reference, len(images))
+        detections = [
+            detect_placement(im, board, k, reference, labels[k], detector_options)
+            for k, im in enumerate(images)
+        ]
         return cls.from_detections(
-            detections, reference=reference, lens=lens, intrinsics=intrinsics, names=names
+            detections, reference=reference, lens=lens, intrinsics=intrinsics, names=labels
         )
 
     @property

@@ -12,8 +12,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from planarcal.calib.boards import Board, is_board
+from planarcal.calib.detection import detect_board
+from planarcal.calib.detector_options import detector_options
 from planarcal.calib.placements import Placement, PlacementLayout, residual_rms, start_poses
-from planarcal.errors import ArgumentError, BoardError, FrameSizeError
+from planarcal.errors import ArgumentError, BoardError, BoardNotFoundError, FrameSizeError
 
 if TYPE_CHECKING:
     from planarcal.calib.calibration import Calibration
@@ -80,6 +82,22 @@ def same_camera_and_board(
                 size,
             )
     return board, size
+
+
+def detect_placement(
+    image: Any, board: Board, k: int, reference: int, name: str, options: dict[str, Any]
+) -> Any:
+    """Placement k's detection of `board` in `image`: a placement other than the reference may
+    lie at any angle, its pose takes the board's turn, so a turned board is accepted there
+    unless the options say otherwise (the reference's frame is the plane's: its orientation
+    stays the user's to settle). BoardNotFoundError names the placement."""
+    options = dict(options)
+    if k != reference and "turned" not in options and "turned" in detector_options(board.kind):
+        options["turned"] = True
+    try:
+        return detect_board(image, board, **options)
+    except BoardNotFoundError as e:
+        raise type(e)(f"placement {k} ({name}): {e}", e.diagnostics) from None
 
 
 def placement_layout(detections: Sequence[Any], reference: int) -> PlacementLayout:

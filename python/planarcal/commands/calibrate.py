@@ -1,6 +1,7 @@
 """`planarcal calibrate`: find the board in an image (or in the average of a camera's, a
-video's or a folder's frames of one still view), fit the plane's homography, save it, and
-report its accuracy."""
+video's or a folder's frames of one still view), or in several images of the board laid at
+several places on the plane (placements, fitted together), fit the plane's homography, save
+it, and report its accuracy and where in the image it is predicted worse than a limit."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from planarcal.calib.boards import Board
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detection import detect_board
 from planarcal.calib.detector_options import detector_options
+from planarcal.calib.placement_set import detect_placement
 from planarcal.camera import CameraIntrinsics
 from planarcal.commands import board_arguments, board_from, count, not_a_folder, positive
 from planarcal.errors import BoardNotFoundError, ImageError
@@ -30,7 +32,10 @@ from planarcal.report.figure import require_matplotlib
 from planarcal.report.printable import CHECK_BAR_MM
 
 DESCRIPTION = (
-    "Find the board in IMAGE, fit the plane's homography, save it, and report its accuracy."
+    "Find the board in IMAGE, fit the plane's homography, save it, and report its accuracy. "
+    "Several IMAGEs are placements: the board laid flat at another place on the plane in "
+    "each (the camera fixed), fitted together so that the calibration holds over the whole "
+    "work area; lay it at the corners of the work area, then in the middle."
 )
 
 FRAMES = 10
@@ -45,7 +50,29 @@ would be a ghost of both."""
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.description = DESCRIPTION
-    p.add_argument("image", nargs="?", type=Path, help="image of the board")
+    p.add_argument(
+        "image",
+        nargs="*",
+        type=Path,
+        help="image of the board; several: one per placement of the board on the plane",
+    )
+    p.add_argument(
+        "--origin",
+        type=int,
+        default=0,
+        metavar="K",
+        help="with several images: the placement (0-based, in the order given) whose board "
+        "frame is the plane's (0, the first)",
+    )
+    p.add_argument(
+        "--max-error-mm",
+        type=positive,
+        default=None,
+        metavar="MM",
+        help="the largest predicted 1-sigma error (mm) acceptable anywhere in the image: the "
+        "summary names the largest region above it (default: twice the error at the "
+        "calibration's points)",
+    )
     p.add_argument(
         "--camera",
         default=None,
@@ -156,29 +183,43 @@ def main(args: argparse.Namespace) -> int:
     if args.intrinsics is not None:
         intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
     options = _detector_options(args, board)
-    image = _read_image(args)
-    try:
-        detection = detect_board(image, board, **options)
-    except BoardNotFoundError as e:
-        if args.report is not None:
-            # What the search saw is what it takes to fix the picture: draw it, then fail.
-            try:
-                drawn = write_detection_failure(args.report, image, e.diagnostics, str(e))
-            except OSError as why:
-                print(f"planarcal calibrate: could not draw what was seen: {why}", file=sys.stderr)
-            else:
-                print(f"planarcal calibrate: drew what the search saw in {drawn}", file=sys.stderr)
-        raise
+    images = _read_images(args)
+    names = [p.name for p in args.image] if args.image else ["camera"]
+    reference = _origin(args, len(images))
+    detections = []
+    for k, image in enumerate(images):
+        try:
+            detections.append(
+                detect_placement(image, board, k, reference, names[k], options)
+                if len(images) > 1
+                else detect_board(image, board, **options)
+            )
+        except BoardNotFoundError as e:
+            _draw_failure(args, image, e)
+            raise
     lens = args.lens
     if intrinsics is not None and lens == "auto":
         lens = "none"
-    cal = Calibration.from_detection(
-        detection,
-        solver=args.solver,
-        refine=not args.no_refine,
-        lens=lens,
-        intrinsics=intrinsics,
-    )
+    if len(detections) > 1:
+        if args.solver != "normalized_dlt" or args.no_refine:
+            raise argparse.ArgumentError(
+                None,
+                "--solver and --no-refine are the paper's single-view estimators: placements "
+                "are fitted jointly by Levenberg-Marquardt (leave them out)",
+            )
+        cal = Calibration.from_detections(
+            detections, reference=reference, lens=lens, intrinsics=intrinsics, names=names
+        )
+    else:
+        cal = Calibration.from_detection(
+            detections[0],
+            solver=args.solver,
+            refine=not args.no_refine,
+            lens=lens,
+            intrinsics=intrinsics,
+        )
+    detection = detections[reference]
+    image = images[reference]
     if args.measured_pitch is not None:
         cal = cal.rescaled(*args.measured_pitch)
     elif args.check_bar is not None:
@@ -187,35 +228,64 @@ def main(args: argparse.Namespace) -> int:
     saved = cal.save(args.output)
     written = []
     if args.report is not None:
-        written = write_report(cal, args.report, image=image, detection=detection)
+        written = write_report(
+            cal, args.report, image=image, detection=detection, max_error_mm=args.max_error_mm
+        )
     if args.json:
-        out = summary_json(cal, detection)
+        out = summary_json(cal, detection, max_error_mm=args.max_error_mm)
         out["calibration_file"] = str(saved)
         if written:
             out["report_files"] = [str(p) for p in written]
         print(json.dumps(out, allow_nan=False))
     else:
-        print(summary_text(cal, detection))
+        print(summary_text(cal, detection, max_error_mm=args.max_error_mm))
         print(f"Saved the calibration to {saved}")
         for p in written:
             print(f"Wrote {p}")
     return 0
 
 
-def _read_image(args: argparse.Namespace) -> Any:
-    """The calibration image: a file, or the average of frames from a camera source."""
-    if args.image is not None and args.camera is not None:
-        raise argparse.ArgumentError(None, "give an IMAGE file or --camera SOURCE, not both")
+def _draw_failure(args: argparse.Namespace, image: Any, e: BoardNotFoundError) -> None:
+    """With --report, what the search saw in the image where the board was not found: what it
+    takes to fix the picture."""
+    if args.report is None:
+        return
+    try:
+        drawn = write_detection_failure(args.report, image, e.diagnostics, str(e))
+    except OSError as why:
+        print(f"planarcal calibrate: could not draw what was seen: {why}", file=sys.stderr)
+    else:
+        print(f"planarcal calibrate: drew what the search saw in {drawn}", file=sys.stderr)
+
+
+def _origin(args: argparse.Namespace, count: int) -> int:
+    if not 0 <= args.origin < count:
+        raise argparse.ArgumentError(
+            None,
+            f"--origin {args.origin} is not a placement: give 0 to {count - 1} (the images in "
+            "the order given)",
+        )
+    return int(args.origin)
+
+
+def _read_images(args: argparse.Namespace) -> list[Any]:
+    """The calibration images: files (one per placement), or the average of frames from a
+    camera source."""
+    if args.image and args.camera is not None:
+        raise argparse.ArgumentError(None, "give IMAGE files or --camera SOURCE, not both")
     if args.camera is None:
-        if args.image is None:
+        if not args.image:
             raise argparse.ArgumentError(None, "give an IMAGE file or --camera SOURCE")
         if args.frames is not None:
             raise argparse.ArgumentError(None, "--frames goes with --camera (an IMAGE is one)")
-        instead = f"to average the images in it, give --camera {args.image}"
-        return load_image(not_a_folder(args.image, instead))
+        images = []
+        for path in args.image:
+            instead = f"to average the images in it, give --camera {path}"
+            images.append(load_image(not_a_folder(path, instead)))
+        return images
     source: int | str = int(args.camera) if args.camera.isdigit() else args.camera
     with Camera(source) as camera:
-        return still_average(camera, FRAMES if args.frames is None else args.frames)
+        return [still_average(camera, FRAMES if args.frames is None else args.frames)]
 
 
 def still_average(camera: Camera, n: int) -> NDArray[np.float32]:

@@ -21,6 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calib.calibration import Calibration, CalibrationSummary
+from planarcal.calib.coverage import calibration_coverage
+from planarcal.calib.placements import Placement
 from planarcal.report.drawing import dot_flags, homography_residual_note
 from planarcal.report.fits import fitted_parameters, homography_alone
 from planarcal.report.mapping import max_displacement_px
@@ -36,14 +38,18 @@ from planarcal.report.point_names import (
 )
 
 
-def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
+def summary_json(
+    cal: Calibration, detection: Any = None, *, max_error_mm: float | None = None
+) -> dict[str, Any]:
     """The summary as one JSON-ready object (NaN becomes null). With a board: ``board``
     (its description as the calibration file holds it), ``board_type``,
     ``board_description``, ``point_name`` ("dot", "corner"), ``n_board_points``,
     ``partial`` and, for a partial view, ``point_ids`` (the order of points.csv) and
     ``not_seen_ids``; ``extrapolation``: the points' coverage of the image and the error
-    predicted beyond them, with its ``warning`` (Calibration.extrapolation); ``detection``:
-    what the detection found (see summary_text)."""
+    predicted beyond them, with its ``warning`` (Calibration.extrapolation); ``coverage``:
+    the largest region of the image predicted worse than ``max_error_mm`` (calib.coverage);
+    ``placements``: each placement's pose and residuals, for a calibration from several;
+    ``detection``: what the detection found (see summary_text)."""
     s = cal.summary()
     out: dict[str, Any] = {
         "n_points": s.n_points,
@@ -85,9 +91,27 @@ def summary_json(cal: Calibration, detection: Any = None) -> dict[str, Any]:
         out["extrapolation"] = extrapolation
     if cal.image_size is not None:
         out["image_size_px"] = list(cal.image_size)
+        out["coverage"] = calibration_coverage(cal, max_error_mm).to_dict()
+    if len(cal.placements) > 1:
+        out["placements"] = [_placement_json(p) for p in cal.placements]
     if detection is not None:
         out["detection"] = _detection_json(detection)
     return {k: _finite_or_none(v) for k, v in out.items()}
+
+
+def _placement_json(p: Placement) -> dict[str, Any]:
+    return {
+        "index": p.index,
+        "name": p.name,
+        "reference": p.reference,
+        "points": len(p.ids),
+        "partial": p.partial,
+        "angle_deg": p.angle_deg,
+        "offset_mm": list(p.offset_mm),
+        "angle_std_deg": p.angle_std_deg,
+        "offset_std_mm": p.offset_std_mm,
+        "rms_error_px": p.rms_px,
+    }
 
 
 def _board_json(board: Any, ids: NDArray[np.intp]) -> dict[str, Any]:
@@ -419,10 +443,13 @@ def _budget_text(cal: Calibration, name: str = "dot") -> list[str]:
     ]
 
 
-def summary_text(cal: Calibration, detection: Any = None) -> str:
-    """A readable summary of the calibration: the board and how much of it was seen, the
-    detection's findings, the fit, its errors and uncertainty, and for points that cover only
-    part of the image, what the rest is predicted at."""
+def summary_text(
+    cal: Calibration, detection: Any = None, *, max_error_mm: float | None = None
+) -> str:
+    """A readable summary of the calibration: the board and how much of it was seen (each
+    placement's pose, for a calibration from several), the detection's findings, the fit,
+    its errors and uncertainty, what the image beyond the points is predicted at and the
+    largest region predicted worse than ``max_error_mm`` (calib.coverage)."""
     s = cal.summary()
     name = point_name(cal.board if cal.board is not None else getattr(detection, "board", None))
     names = plural(name, 2)
@@ -431,6 +458,14 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
     if cal.board is not None:
         b = cal.board
         lines.append(f"Board: {b.describe()}")
+    placements = cal.placements
+    if len(placements) > 1:
+        lines.append(
+            f"Placements: {len(placements)}, fitted together (the plane's frame is placement "
+            f"{next(p.index for p in placements if p.reference)}'s board frame; the detection "
+            "below is its)"
+        )
+        lines += [f"  {p.describe()}" for p in placements]
     if detection is not None:
         lines += _found_text(detection)
         lines += _detection_text(detection)
@@ -471,6 +506,8 @@ def summary_text(cal: Calibration, detection: Any = None) -> str:
         ]
     lines += _budget_text(cal, name)
     lines += _extrapolation_text(cal)
+    if cal.image_size is not None:
+        lines.append(f"Coverage: {calibration_coverage(cal, max_error_mm).sentence}")
     if tuple(cal.world_scale) != (1.0, 1.0):
         sx, sy = cal.world_scale
         lines.append(

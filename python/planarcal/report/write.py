@@ -25,6 +25,7 @@ def write_report(
     *,
     image: Any = None,
     detection: Any = None,
+    max_error_mm: float | None = None,
 ) -> list[Path]:
     """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png and (with an
     image and its detection) detection.png into `out_dir` (created if need be), each
@@ -39,7 +40,10 @@ def write_report(
         atomic_write(out / "points.csv", points_csv(cal, detection)),
         atomic_write(
             out / "summary.json",
-            json.dumps(summary_json(cal, detection), indent=2, allow_nan=False) + "\n",
+            json.dumps(
+                summary_json(cal, detection, max_error_mm=max_error_mm), indent=2, allow_nan=False
+            )
+            + "\n",
         ),
         atomic_write(out / "deviations.png", deviation_figure(cal)),
         atomic_write(out / "lens.png", lens_figure(cal, image=image)),
