@@ -74,8 +74,8 @@ from planarcal.calib.placement_set import (
     placement_names,
     same_camera_and_board,
 )
-from planarcal.calib.placements import Placement, check_placements
-from planarcal.calib.plane_fit import PlaneFit
+from planarcal.calib.placements import Placement, PlacementLayout, check_placements
+from planarcal.calib.plane_fit import PlaneFit, plane_at
 from planarcal.camera import CameraIntrinsics, plane_pose, points_at_height
 from planarcal.errors import (
     ArgumentError,
@@ -394,6 +394,36 @@ class Calibration:
             raise IntrinsicsError(
                 f"intrinsics must be a CameraIntrinsics, got {type(intrinsics).__name__}"
             )
+        return cls._from_layout(
+            layout,
+            image,
+            board,
+            size,
+            ids,
+            lens=lens,
+            intrinsics=intrinsics,
+            names=labels,
+            partial=tuple(bool(d.partial) for d in dets),
+        )
+
+    @classmethod
+    def _from_layout(
+        cls,
+        layout: PlacementLayout,
+        image: F64,
+        board: Board,
+        size: tuple[int, int],
+        ids: NDArray[np.intp],
+        *,
+        lens: LensChoice,
+        intrinsics: CameraIntrinsics | None,
+        names: tuple[str, ...],
+        partial: tuple[bool, ...],
+        world_scale: tuple[float, float] = (1.0, 1.0),
+        check: bool = True,
+    ) -> Calibration:
+        """The placements fit of `layout` (its poses the start) and `image`; ``check``
+        refuses a placement the others' plane cannot explain (PlacementError)."""
         try:
             fit = fit_with_lens(
                 layout.board_mm, image, "normalized_dlt", True, lens, size, intrinsics, layout
@@ -404,14 +434,16 @@ class Calibration:
         world = fit.placements.plane_points()
         fit = calibration_file.fit_as_loaded(fit, world, image, size, intrinsics)
         assert fit.placements is not None
-        ideal = image if intrinsics is None else intrinsics.undistort_points(image)
-        check_placements(
-            fit.placements,
-            ideal,
-            fit.plane.world_to_image(world),
-            lambda px: fit.plane.image_to_world(px, invalid="nan"),
-            labels,
-        )
+        if check:
+            ideal = image if intrinsics is None else intrinsics.undistort_points(image)
+            plane = fit.plane
+            check_placements(
+                fit.placements,
+                ideal,
+                plane.world_to_image(world),
+                lambda px: plane.image_to_world(px, invalid="nan"),
+                names,
+            )
         cal = cls.__new__(cls)
         cal._init(
             world,
@@ -422,12 +454,49 @@ class Calibration:
             board,
             size,
             intrinsics,
-            (1.0, 1.0),
+            world_scale,
             ids=ids,
-            placement_names=labels,
-            placement_partial=tuple(bool(d.partial) for d in dets),
+            placement_names=names,
+            placement_partial=partial,
         )
         return cal
+
+    def homography_alone(self) -> Calibration:
+        """The same points fitted by a homography alone (no lens model, no intrinsics), in the
+        same millimetres: the "before" of the report's comparison. A calibration from
+        several placements is refitted with its placements."""
+        layout = self._fit.placements
+        if layout is None or self.board is None or self.image_size is None:
+            sx, sy = (float(v) for v in self.world_scale)
+            scaled = (sx, sy) != (1.0, 1.0) and self.board is not None
+            # A calibration corrected for the printer's scale is fitted on the board's own
+            # points, then corrected as it was.
+            alone = Calibration(
+                self._world / np.array([sx, sy]) if scaled else self._world,
+                self._image,
+                solver=self.solver,
+                refine=self.refine,
+                lens="none",
+                board=self.board,
+                image_size=self.image_size,
+            )
+            if scaled and self.board is not None:
+                return alone.rescaled(self.board.pitch * sx, self.board.pitch * sy)
+            return alone
+        assert self.point_ids is not None
+        return Calibration._from_layout(
+            layout,
+            self._image,
+            self.board,
+            self.image_size,
+            self.point_ids,
+            lens="none",
+            intrinsics=None,
+            names=self._placement_names,
+            partial=self._placement_partial,
+            world_scale=self.world_scale,
+            check=False,
+        )
 
     @classmethod
     def from_images(
@@ -967,8 +1036,25 @@ class Calibration:
     def predicted_loo_std_mm(self) -> F64:
         """The leave-one-out error each point should have by the fit's covariance (1-sigma,
         RMS distance, mm): compare loo_errors_mm. NaN without residual degrees of freedom."""
+        plane = self._fit.plane
+        scale = 1.0
+        if self._fit.placements is not None:
+            # The leave-one-out refits hold the poses (a point moves its placement's pose by
+            # little), so its error is predicted with them held too: the plane's model of the
+            # same parameters on the points where the poses put them, at the joint fit's noise.
+            held, _ = plane_at(
+                self._h,
+                self._world,
+                self._image,
+                self.image_size,
+                self._fit.lens,
+                plane.lens,
+                self.intrinsics,
+            )
+            scale = held.dof / max(plane.dof, 1)
+            plane = held
         try:
-            cov = self._fit.plane.predicted_loo_covariance()
+            cov = plane.predicted_loo_covariance() * scale
         except LensModelError:
             return np.full(len(self._world), np.nan)
         return np.asarray(np.sqrt(np.trace(cov, axis1=1, axis2=2)), dtype=np.float64)

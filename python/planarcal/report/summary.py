@@ -507,7 +507,7 @@ def summary_text(
     lines += _budget_text(cal, name)
     lines += _extrapolation_text(cal)
     if cal.image_size is not None:
-        lines.append(f"Coverage: {calibration_coverage(cal, max_error_mm).sentence}")
+        lines.append(f"Error map: {calibration_coverage(cal, max_error_mm).sentence}")
     if tuple(cal.world_scale) != (1.0, 1.0):
         sx, sy = cal.world_scale
         lines.append(
