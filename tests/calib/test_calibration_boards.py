@@ -97,7 +97,7 @@ def test_every_board_calibrates_whole_and_in_part_with_its_point_ids(
     # The file keeps the board's type and the ids, loads, and saves again byte for byte.
     path = cal.save(tmp_path / "cal.json")
     data = json.loads(path.read_text())
-    assert data["version"] == FILE_VERSION == 5
+    assert data["version"] == FILE_VERSION == 6
     assert data["board"]["type"] == board.kind
     assert data["points"]["ids"] == [int(i) for i in ids[shuffled]]
     back = Calibration.load(path)

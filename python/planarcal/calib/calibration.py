@@ -436,14 +436,8 @@ class Calibration:
         assert fit.placements is not None
         if check:
             ideal = image if intrinsics is None else intrinsics.undistort_points(image)
-            plane = fit.plane
-            check_placements(
-                fit.placements,
-                ideal,
-                plane.world_to_image(world),
-                lambda px: plane.image_to_world(px, invalid="nan"),
-                names,
-            )
+            lens_fitted = fit.lens if fit.lens in LENS_MODELS else "none"
+            check_placements(fit.placements, ideal, lens_fitted, size, names)
         cal = cls.__new__(cls)
         cal._init(
             world,

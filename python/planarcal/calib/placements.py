@@ -20,23 +20,24 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core
 from planarcal.calib.lens_model import LensKind
-from planarcal.errors import HomographyError, PlacementError
+from planarcal.errors import ArgumentError, HomographyError, LensModelError, PlacementError
 from planarcal.homography import estimate_homography, transform_points
 
 F64 = NDArray[np.float64]
 
-OUTLIER_RATIO = 3.0
-"""A placement whose residuals' RMS is this many times the other placements' pooled RMS..."""
+OUTLIER_RATIO = 4.0
+"""A placement whose points, held out, land this many times farther from a flat board than
+the other placements' fit predicts..."""
 OUTLIER_FLOOR_PX = 0.1
-"""... and above this (px) is refused: the plane and lens that fit the others cannot show it
-where it was seen."""
+"""... and by more than this (px, in the image) is refused: the plane and lens that fit the
+others cannot show it where it was seen."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -199,39 +200,99 @@ def placements_at(
 
 
 def residual_rms(image_px: F64, predicted_px: F64, placement: NDArray[np.intp], count: int) -> F64:
-    """Each placement's RMS residual (px) between its seen and predicted pixels."""
+    """Each placement's RMS residual (px, per coordinate) between its seen and predicted
+    pixels."""
     d2 = np.sum((image_px - predicted_px) ** 2, axis=1)
     return np.array([math.sqrt(float(np.mean(d2[placement == k])) / 2.0) for k in range(count)])
 
 
 def check_placements(
     layout: PlacementLayout,
-    image_px: F64,
-    predicted_px: F64,
-    to_plane: Callable[[F64], F64],
+    ideal_px: F64,
+    lens: str,
+    size: tuple[int, int],
     names: Sequence[str],
-) -> F64:
-    """Each placement's residual RMS (px, per coordinate); PlacementError naming a placement
-    the joint fit cannot explain (OUTLIER_RATIO times the others' RMS and above
-    OUTLIER_FLOOR_PX), with what its misfit looks like (``to_plane`` maps pixels to the plane
-    through the joint fit)."""
+) -> None:
+    """PlacementError naming a placement that the plane the others define cannot explain: each
+    placement (of three or more) is held out, the others fitted together (lens model `lens`),
+    its pixels mapped to the plane by them and its board points fitted there by a rotation and
+    translation. A flat, correctly detected placement lands within the others' predicted
+    error (their fit's 1-sigma at its pixels, with their residuals' noise in its pixels: a
+    bad placement among them inflates both, so it is the held-out one that stands out);
+    one more than
+    OUTLIER_RATIO times off, and by more than OUTLIER_FLOOR_PX, is named with what its misfit
+    looks like (calib.placements.misfit). Two placements cannot outvote each other: their
+    joint residuals are compared instead."""
     count = layout.count
-    rms = residual_rms(image_px, predicted_px, layout.placement, count)
-    if count < 2:
-        return rms
-    d2 = np.sum((image_px - predicted_px) ** 2, axis=1)
-    worst = int(np.argmax(rms))
-    pooled = math.sqrt(float(np.mean(d2[layout.placement != worst])) / 2.0)
-    if not (rms[worst] > OUTLIER_RATIO * pooled and rms[worst] > OUTLIER_FLOOR_PX):
-        return rms
-    mine = layout.placement == worst
+    if count < 3:
+        return
+    worst: tuple[float, int, F64] | None = None
+    for k in range(count):
+        mine = layout.placement == k
+        others = _without(layout, k)
+        try:
+            plane, _ = fit_placements(others, ideal_px[~mine], lens, size)
+            seen, std = plane.image_to_world_std(ideal_px[mine], plane.sigma)
+        except (HomographyError, LensModelError, ArgumentError):
+            continue  # the others alone cannot map it: no verdict on it
+        board = layout.board_mm[mine]
+        angle, x, y = rigid_fit(board, seen)
+        c, s = math.cos(angle), math.sin(angle)
+        placed = board @ np.array([[c, s], [-s, c]]) + np.array([x, y])
+        rms_mm = math.sqrt(float(np.mean(np.sum((seen - placed) ** 2, axis=1))))
+        expected = math.sqrt(float(np.mean(std**2)))
+        # The misfit in pixels: the board's spread in mm against its image's.
+        px_per_mm = float(np.std(ideal_px[mine]) / max(float(np.std(board)), 1e-12))
+        score = rms_mm / max(expected, 1e-12)
+        if (
+            score > OUTLIER_RATIO
+            and rms_mm * px_per_mm > OUTLIER_FLOOR_PX
+            and (worst is None or score > worst[0])
+        ):
+            worst = (score, k, seen)
+    if worst is None:
+        return
+    score, k, seen = worst
+    mine = layout.placement == k
     raise PlacementError(
-        f"placement {worst} ({names[worst]}) does not fit the plane the others define: its "
-        f"points miss the joint fit by {rms[worst]:.3f} px RMS, the others' by "
-        f"{pooled:.3f} px; {misfit(layout.board_mm[mine], to_plane(image_px[mine]))}. Take "
-        "that image again with the board flat on the plane, or leave it out",
-        placement=worst,
+        f"placement {k} ({names[k]}) does not fit the plane the other placements define: "
+        f"held out, its points land {score:.0f} times farther from a board laid flat than "
+        f"the others' fit predicts; {misfit(layout.board_mm[mine], seen)}. Take that image "
+        "again with the board flat on the plane, or leave it out",
+        placement=k,
     )
+
+
+def _without(layout: PlacementLayout, k: int) -> PlacementLayout:
+    """The layout without placement k (the others renumbered; the reference another one if k
+    was it: the frame only fixes the gauge here)."""
+    keep = layout.placement != k
+    placement = layout.placement[keep]
+    placement = placement - (placement > k)
+    reference = layout.reference - (layout.reference > k) if layout.reference != k else 0
+    poses = np.delete(layout.poses, k, axis=0)
+    if layout.reference == k:
+        # The new reference's pose becomes the identity: carry the others into its frame.
+        poses = _relative_to(poses, reference)
+    return PlacementLayout(
+        np.ascontiguousarray(layout.board_mm[keep]),
+        placement,
+        int(reference),
+        poses,
+        np.zeros((len(poses), 3, 3)),
+    )
+
+
+def _relative_to(poses: F64, r: int) -> F64:
+    """The poses expressed in placement r's frame (its pose then the identity)."""
+    a0, x0, y0 = (float(v) for v in poses[r])
+    c, s = math.cos(-a0), math.sin(-a0)
+    out: F64 = poses.copy()
+    dx, dy = poses[:, 1] - x0, poses[:, 2] - y0
+    out[:, 0] = poses[:, 0] - a0
+    out[:, 1] = c * dx - s * dy
+    out[:, 2] = s * dx + c * dy
+    return out
 
 
 def misfit(board_mm: F64, seen_mm: F64) -> str:
