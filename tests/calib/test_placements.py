@@ -218,9 +218,9 @@ def test_a_wrong_detection_is_named(cell: list[Path]) -> None:
 def test_placements_of_other_boards_or_cameras_are_refused(cell: list[Path]) -> None:
     dets = _detections(cell)
     other = CircleGridBoard(7, 6, 25.0)
-    with pytest.raises(BoardError, match="placement 1 .*another board"):
+    with pytest.raises(BoardError, match=r"placement 1 .*another board"):
         Calibration.from_detections([dets[0], dataclasses.replace(dets[1], board=other)])
-    with pytest.raises(FrameSizeError, match="placement 1 .*one fixed camera"):
+    with pytest.raises(FrameSizeError, match=r"placement 1 .*one fixed camera"):
         Calibration.from_detections([dets[0], dataclasses.replace(dets[1], image_size=(640, 480))])
     with pytest.raises(ArgumentError, match="reference"):
         Calibration.from_detections(dets, reference=4)
@@ -252,4 +252,5 @@ def test_the_cli_calibrates_from_several_images(cell: list[Path], tmp_path: Path
 
 def _table_points(board: Board, origin: tuple[float, float], angle: float) -> F64:
     c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
-    return board.world_points() @ np.array([[c, s], [-s, c]]) + np.asarray(origin)
+    out: F64 = board.world_points() @ np.array([[c, s], [-s, c]]) + np.asarray(origin)
+    return out
