@@ -53,8 +53,9 @@ class Region:
 
     share: float
     """The share of the image it covers (0 to 1)."""
-    bbox_px: tuple[float, float, float, float]
-    """(x0, y0, x1, y1): its bounding box in px (pixel edges, within 0..width, 0..height)."""
+    bbox_px: tuple[int, int, int, int]
+    """(x0, y0, x1, y1): its bounding box, the pixels image[y0:y1, x0:x1] (columns x0 to
+    x1 - 1, rows y0 to y1 - 1; within 0..width, 0..height)."""
     centroid_px: tuple[float, float]
     """Its centroid in px (of an L-shaped region, possibly outside it)."""
     target_px: tuple[float, float]
@@ -74,24 +75,30 @@ class Region:
     """(ny, nx): its nodes on the coverage's grid."""
 
     @property
-    def most(self) -> bool:
-        """Whether it covers most of the image (MOST_OF_THE_IMAGE)."""
-        return self.share >= MOST_OF_THE_IMAGE
+    def spread(self) -> bool:
+        """Whether it is no one part of the image: it covers most of it (MOST_OF_THE_IMAGE),
+        or reaches across it both ways (around the placements)."""
+        ny, nx = self.mask.shape
+        columns, rows = self.mask.any(axis=0).sum(), self.mask.any(axis=1).sum()
+        return self.share >= MOST_OF_THE_IMAGE or bool(columns > 0.9 * nx and rows > 0.9 * ny)
 
     def where(self) -> str:
         """The region named in words with its extent: "the bottom-right corner of the image
-        (x 900-1280 px, y 540-720 px, 14 % of the image)", or "most of the image (...)"."""
+        (x 900-1280 px, y 540-720 px, 14 % of the image)"; one spread over the image, "most
+        of the image (...)" or "the image around the placements (...)"."""
         x0, y0, x1, y1 = self.bbox_px
-        extent = f"x {x0:.0f}-{x1:.0f} px, y {y0:.0f}-{y1:.0f} px, {_percent(self.share)}"
-        if self.most:
+        extent = f"x {x0}-{x1} px, y {y0}-{y1} px, {_percent(self.share)}"
+        if self.share >= MOST_OF_THE_IMAGE:
             return f"most of the image ({extent})"
+        if self.spread:
+            return f"the image around the placements ({extent})"
         return f"the {self.part} of the image ({extent})"
 
     def advice(self) -> str:
         """Where to put the board next: "put the board there next, centred near (1183,
-        623) px" (in a region covering most of the image, which part of it)."""
+        623) px" (in a region spread over the image, which part of it)."""
         where = "there"
-        if self.most:
+        if self.spread:
             where = f"{'at' if self.part.endswith('edge') else 'in'} its {self.part}"
         tx, ty = self.target_px
         return f"put the board {where} next, centred near ({tx:.0f}, {ty:.0f}) px"
@@ -362,11 +369,12 @@ def _largest_region(
     areas[0] = -1.0  # the nodes within the limit
     mask = labels == int(np.argmax(areas))
     rows, cols = np.nonzero(mask)
+    # Pixel k spans k - 0.5 to k + 0.5: the box's edges as slice bounds.
     bbox = (
-        max(0.0, float(ex[cols.min()])),
-        max(0.0, float(ey[rows.min()])),
-        min(float(w), float(ex[cols.max() + 1])),
-        min(float(h), float(ey[rows.max() + 1])),
+        round(float(ex[cols.min()]) + 0.5),
+        round(float(ey[rows.min()]) + 0.5),
+        round(float(ex[cols.max() + 1]) + 0.5),
+        round(float(ey[rows.max() + 1]) + 0.5),
     )
     weights = area[rows, cols]
     centroid = (
@@ -401,12 +409,15 @@ def _target(
     room = depth_px >= reach_px
     if not room.any():
         room = depth_px == depth_px.max()
-    # The worst error there, the deepest node among equals (several with no place).
-    key = np.where(room, std, -1.0)
-    best = np.flatnonzero(key.ravel() == key.max())
-    k = int(best[np.argmax(depth_px.ravel()[best])])
-    ty, tx = np.unravel_index(k, mask.shape)
-    return float(xs[tx]), float(ys[ty])
+    # The worst error there; among equals (several with no place) the deepest, then the
+    # nearest the region's middle.
+    key = np.where(room, std, -1.0).ravel()
+    best = np.flatnonzero(key == key.max())
+    rows, cols = np.unravel_index(best, mask.shape)
+    rr, cc = np.nonzero(mask)
+    off_middle = np.hypot(xs[cols] - xs[cc].mean(), ys[rows] - ys[rr].mean())
+    k = int(np.lexsort((off_middle, -depth_px.ravel()[best]))[0])
+    return float(xs[cols[k]]), float(ys[rows[k]])
 
 
 def _part(px: tuple[float, float], size: tuple[int, int]) -> str:
