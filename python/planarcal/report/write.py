@@ -10,6 +10,7 @@ from typing import Any
 
 from planarcal.calib.calibration import Calibration
 from planarcal.files import atomic_write
+from planarcal.report.coverage import coverage_figure
 from planarcal.report.deviations import deviation_figure
 from planarcal.report.drawing import draw_detection, png_bytes
 from planarcal.report.figure import require_matplotlib
@@ -27,10 +28,12 @@ def write_report(
     detection: Any = None,
     max_error_mm: float | None = None,
 ) -> list[Path]:
-    """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png and (with an
-    image and its detection) detection.png into `out_dir` (created if need be), each
-    atomically; returns the paths written. Any board, whole or seen in part: a partial
-    view's detection figure draws the board's other points where the calibration puts them.
+    """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png, (with an
+    image size) coverage.png, its predicted error over `image` against ``max_error_mm``
+    (calib.coverage), and (with an image and its detection) detection.png into `out_dir`
+    (created if need be), each atomically; returns the paths written. Any board, whole or
+    seen in part: a partial view's detection figure draws the board's other points where the
+    calibration puts them.
     Without matplotlib (the extra ``planarcal[report]``) raises MissingDependencyError before
     writing anything."""
     require_matplotlib()  # before the tables: no half-written report
@@ -49,6 +52,9 @@ def write_report(
         atomic_write(out / "lens.png", lens_figure(cal, image=image)),
         atomic_write(out / "uncertainty.png", uncertainty_figure(cal)),
     ]
+    if cal.image_size is not None:
+        figure = coverage_figure(cal, image, max_error_mm=max_error_mm)
+        written.append(atomic_write(out / "coverage.png", figure))
     if image is not None and detection is not None:
         drawn = draw_detection(image, detection, residual_note=residual_note(cal), calibration=cal)
         written.append(atomic_write(out / "detection.png", png_bytes(drawn)))
