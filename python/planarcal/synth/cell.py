@@ -85,6 +85,18 @@ PAPER_MARGIN_MM = 15.0
 # The placements' places, in thirds of the work area (column, row), in the order they are
 # used: the middle (the reference), the four corners, then the middles of the four sides.
 _SLOTS = ((1, 1), (0, 0), (2, 0), (2, 2), (0, 2), (1, 0), (2, 1), (1, 2), (0, 1))
+# Their names, as the camera sees them (the table's x to the right of the image, y down it).
+_SLOT_NAMES = (
+    "middle",
+    "top left",
+    "top right",
+    "bottom right",
+    "bottom left",
+    "top",
+    "right",
+    "bottom",
+    "left",
+)
 # The boards' angles (degrees), in the same order: varied, and within 35 degrees, where every
 # board type's detector reads the board's ids the way they are printed.
 _ANGLES = (3.0, 12.0, -18.0, 25.0, -10.0, 30.0, -24.0, 16.0, -32.0)
@@ -98,6 +110,8 @@ _IMAGE_MARGIN = 0.03
 class CellPlacement:
     """One placement of the board and its photograph.
 
+    ``name``: where it is in the work area ("middle", "top left", ...: the image's top is
+    the table's -y side) or, for a place given, "placement k";
     ``centre_mm``: where the middle of the board's printed field lies on the table;
     ``origin_mm``: where its world origin (board point 0's frame origin) lies;
     ``angle_deg``: the board's x axis from the table's (towards its y); ``raised_mm``: how
@@ -108,6 +122,7 @@ class CellPlacement:
     """
 
     index: int
+    name: str
     centre_mm: tuple[float, float]
     origin_mm: tuple[float, float]
     angle_deg: float
@@ -194,14 +209,20 @@ class Cell:
         gx, gy = np.meshgrid(xs, ys)
         return np.column_stack([gx.ravel(), gy.ravel()])
 
-    def distance_to_boards_mm(self, table_mm: ArrayLike) -> F64:
+    def distance_to_boards_mm(self, table_mm: ArrayLike, count: int | None = None) -> F64:
         """Each table point's (...) distance to the nearest flat placement's board points (the
-        rectangle they span; 0 inside it): 0 on a placement, large far from every one."""
+        rectangle they span; 0 inside it): 0 on a placement, large far from every one.
+        ``count``: only the first ``count`` placements (a calibration from those)."""
         p, shape = arguments.points("table_mm", table_mm)
+        n = len(self.placements) if count is None else count
+        if isinstance(n, bool) or not isinstance(n, int | np.integer):
+            raise ArgumentError(f"count must be a number of placements, got {count!r}")
+        if not 1 <= n <= len(self.placements):
+            raise ArgumentError(f"count must be 1 to {len(self.placements)}, got {count!r}")
         pts = self.board.world_points()
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         best = np.full(len(p), np.inf)
-        for placement in self.placements:
+        for placement in self.placements[:n]:
             if not placement.flat:
                 continue
             b = (p - np.array(placement.origin_mm)) @ _rotation_2d(placement.angle_deg)
@@ -319,6 +340,9 @@ def render_cell(
         rendered.append(
             CellPlacement(
                 index=k,
+                name=_SLOT_NAMES[k]
+                if isinstance(placements, int | np.integer)
+                else f"placement {k}",
                 centre_mm=(x, y),
                 origin_mm=(float(origin[0]), float(origin[1])),
                 angle_deg=angle,
