@@ -181,7 +181,7 @@ def test_several_placements_each_outlined_their_union_covered() -> None:
     single = calibration_coverage(Calibration.from_detection(dets[0]))
     assert cov.image_std_mm < single.image_std_mm / 2
     # The same points twice cover no more than once.
-    twice = coverage(cal._mapping_std_mm, SIZE, [dets[0].image_points] * 2)
+    twice = coverage(cal.mapping_std_mm, SIZE, [dets[0].image_points] * 2)
     assert twice.covered_share == pytest.approx(one[0], abs=1e-12)
 
 

@@ -1064,12 +1064,15 @@ class Calibration:
         view). None without an image size."""
         if self.image_size is None:
             return None
-        return extrapolation(self._mapping_std_mm, self._image, self.image_size)
+        return extrapolation(self.mapping_std_mm, self._image, self.image_size)
 
-    def _mapping_std_mm(self, px: F64) -> F64:
-        """The calibration's own 1-sigma (mm) at pixels `px` (the pixel exact): inf where a
-        pixel has no place on the plane (beyond the plane's horizon, as the points see it, or
-        beyond the lens model's reach)."""
+    def mapping_std_mm(self, points_px: ArrayLike) -> F64:
+        """The calibration's own predicted 1-sigma mapping error (mm, RMS distance) at pixels
+        (N, 2), the pixel itself exact: what ``image_to_world(..., return_std=True,
+        pixel_sigma=0)`` gives, but inf where a pixel has no place on the plane (beyond the
+        plane's horizon, as the points see it, or beyond the lens model's reach) instead of
+        an error: the map the coverage view (calib.coverage) and ``extrapolation`` draw."""
+        px = _points(points_px, "points_px")
         out = np.full(len(px), np.inf)
         if self.intrinsics is not None:
             ideal = self.intrinsics.undistort_points(px, invalid="nan")
@@ -1087,15 +1090,25 @@ class Calibration:
         w = ideal @ inv[2, :2] + inv[2, 2]
         w_points = points_ideal @ inv[2, :2] + inv[2, 2]
         side = float(np.sign(np.nanmedian(w_points)))
-        ok = np.isfinite(ideal).all(axis=1) & (w * side > 0)
-        if ok.any():
-            try:
-                _, std = self._fit.plane.image_to_world_std(np.ascontiguousarray(feed[ok]), 0.0)
-                out[ok] = std
-            except (HomographyError, LensModelError, ArgumentError):
-                pass  # left as having no place
+        ok = np.flatnonzero(np.isfinite(ideal).all(axis=1) & (w * side > 0))
+        self._std_into(np.ascontiguousarray(feed), ok, out)
         out[~np.isfinite(out)] = np.inf
         return out
+
+    def _std_into(self, feed: F64, rows: NDArray[np.intp], out: F64) -> None:
+        """The plane's 1-sigma of `feed[rows]` into `out[rows]`; where the core refuses the
+        batch (a pixel beyond the lens model's reach), each half on its own, so that one such
+        pixel leaves only itself without a place."""
+        if not len(rows):
+            return
+        try:
+            _, std = self._fit.plane.image_to_world_std(feed[rows], 0.0)
+            out[rows] = std
+        except (HomographyError, LensModelError, ArgumentError):
+            if len(rows) > 1:
+                half = len(rows) // 2
+                self._std_into(feed, rows[:half], out)
+                self._std_into(feed, rows[half:], out)
 
     def describe_lines(self, summary: CalibrationSummary | None = None) -> list[str]:
         """The calibration in a few lines: its board and points, its errors, its lens and,

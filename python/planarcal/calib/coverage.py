@@ -287,7 +287,7 @@ def calibration_coverage(cal: Any, max_error_mm: float | None = None) -> Coverag
         )
     placements = tuple(getattr(cal, "placements", None) or ())
     points = [p.image_px for p in placements] if placements else [cal.image_points]
-    return coverage(cal._mapping_std_mm, size, points, max_error_mm)
+    return coverage(cal.mapping_std_mm, size, points, max_error_mm)
 
 
 def _placements(placements_px: Sequence[Any]) -> list[F64]:

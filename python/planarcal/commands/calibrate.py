@@ -229,7 +229,12 @@ def main(args: argparse.Namespace) -> int:
     written = []
     if args.report is not None:
         written = write_report(
-            cal, args.report, image=image, detection=detection, max_error_mm=args.max_error_mm
+            cal,
+            args.report,
+            image=image,
+            detection=detection,
+            max_error_mm=args.max_error_mm,
+            placement_images=images,
         )
     if args.json:
         out = summary_json(cal, detection, max_error_mm=args.max_error_mm)

@@ -13,6 +13,9 @@
   and the distortion it found, as PNG.
 * ``uncertainty_figure`` (uncertainty.py): the 1-sigma position uncertainty (mm) as a heat
   map over the working area, with where it doubles relative to the board's centre, as PNG.
+* ``coverage_figure`` / ``draw_coverage`` (coverage.py): the predicted error (mm) over the
+  whole image with each placement's outline and the largest region above a limit
+  (calib.coverage), as PNG or drawn on an image (the live page's).
 * ``write_report`` (write.py): all of these (and the detection drawn on the image, Figure 4,
   drawing.py) into a directory, each file written atomically.
 * ``detection_failure_figure`` / ``write_detection_failure`` (failure.py): when the board is
@@ -30,6 +33,7 @@ is installed, a figure and its PNG), fits.py (the fit before the lens model) and
 every figure raises MissingDependencyError without it.
 """
 
+from planarcal.report.coverage import coverage_figure, draw_coverage
 from planarcal.report.deviations import deviation_figure
 from planarcal.report.failure import (
     DETECTION_FAILED_PNG,
@@ -46,9 +50,11 @@ from planarcal.report.write import write_report
 __all__ = [
     "CSV_COLUMNS",
     "DETECTION_FAILED_PNG",
+    "coverage_figure",
     "detection_failure_figure",
     "detection_failure_text",
     "deviation_figure",
+    "draw_coverage",
     "lens_figure",
     "points_csv",
     "residual_note",

@@ -5,11 +5,15 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from planarcal.calib.calibration import Calibration
 from planarcal.files import atomic_write
+from planarcal.images import as_grey
 from planarcal.report.coverage import coverage_figure
 from planarcal.report.deviations import deviation_figure
 from planarcal.report.drawing import draw_detection, png_bytes
@@ -27,13 +31,16 @@ def write_report(
     image: Any = None,
     detection: Any = None,
     max_error_mm: float | None = None,
+    placement_images: Sequence[Any] = (),
 ) -> list[Path]:
     """Writes points.csv, summary.json, deviations.png, lens.png, uncertainty.png, (with an
     image size) coverage.png, its predicted error over `image` against ``max_error_mm``
     (calib.coverage), and (with an image and its detection) detection.png into `out_dir`
     (created if need be), each atomically; returns the paths written. Any board, whole or
     seen in part: a partial view's detection figure draws the board's other points where the
-    calibration puts them.
+    calibration puts them. ``placement_images`` (a calibration from several placements: their
+    images) are shown together under coverage.png, each board where it lay (their brightest
+    pixels: the paper over the table).
     Without matplotlib (the extra ``planarcal[report]``) raises MissingDependencyError before
     writing anything."""
     require_matplotlib()  # before the tables: no half-written report
@@ -53,7 +60,10 @@ def write_report(
         atomic_write(out / "uncertainty.png", uncertainty_figure(cal)),
     ]
     if cal.image_size is not None:
-        figure = coverage_figure(cal, image, max_error_mm=max_error_mm)
+        under = image
+        if len(placement_images) > 1:
+            under = np.max(np.stack([as_grey(im) for im in placement_images]), axis=0)
+        figure = coverage_figure(cal, under, max_error_mm=max_error_mm)
         written.append(atomic_write(out / "coverage.png", figure))
     if image is not None and detection is not None:
         drawn = draw_detection(image, detection, residual_note=residual_note(cal), calibration=cal)
