@@ -724,8 +724,11 @@ class Calibration:
 
         * ``dots``: the id of the board point (a dot, a corner) the robot's tool touched
           (N,), 0-based as ``board.world_points()`` numbers them (k = row x cols + col from
-          the origin point), whether or not the camera saw it;
-        * ``board_mm``: the touched points' board positions (N, 2), mm;
+          the origin point), whether or not the camera saw it (a calibration from several
+          placements: the board lying where the reference placement had it, whose frame is
+          the plane's);
+        * ``board_mm``: the touched points' board positions (N, 2), mm (in the plane's
+          frame);
         * ``image_px``: N-point, where the camera saw the part the robot placed (N, 2), px;
           mapped through this calibration, their 1-sigma goes into the fit's noise floor.
 

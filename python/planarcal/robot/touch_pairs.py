@@ -108,12 +108,17 @@ def plane_points(
 
 
 def board_extent(calibration: PlaneCalibration) -> F64 | None:
-    """The corners ((x0, y0), (x1, y1)) in board mm of the calibration's board's dots (the
-    area a registration serves), or None for a calibration that records no board."""
+    """The corners ((x0, y0), (x1, y1)) in board mm of the calibration's board's dots and of
+    the points it was calibrated on (the area a registration serves: a calibration from
+    several placements serves all of them), or None for a calibration that records no
+    board."""
     board = calibration.board
     if board is None:
         return None
     dots = board.world_points() * np.asarray(calibration.world_scale, dtype=np.float64)
+    calibrated = getattr(calibration, "world_points", None)
+    if calibrated is not None and len(calibrated):
+        dots = np.concatenate([dots, np.asarray(calibrated, dtype=np.float64)])
     out: F64 = np.array([dots.min(axis=0), dots.max(axis=0)])
     return out
 
