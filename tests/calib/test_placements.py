@@ -30,7 +30,8 @@ from planarcal.errors import (
     FrameSizeError,
     PlacementError,
 )
-from planarcal.synth import CameraModel, PlanePose, render_scene
+from planarcal.live.objects import locate_objects
+from planarcal.synth import CameraModel, PlanePose, SceneObject, render_scene
 
 F64 = NDArray[np.float64]
 
@@ -254,3 +255,29 @@ def _table_points(board: Board, origin: tuple[float, float], angle: float) -> F6
     c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
     out: F64 = board.world_points() @ np.array([[c, s], [-s, c]]) + np.asarray(origin)
     return out
+
+
+def test_locate_and_register_work_unchanged_over_the_whole_area(joint: Calibration) -> None:
+    # Parts (the board taken away) over the whole work area, far from the reference too.
+    parts = [
+        SceneObject("disc", (340.0, 300.0), size_mm=14.0),
+        SceneObject("nut", (330.0, 20.0), angle_deg=10.0, size_mm=10.0),
+        SceneObject("washer", (10.0, 310.0), size_mm=12.0),
+    ]
+    scene = render_scene(
+        CAMERA, POSE, board=None, objects=parts, blur_sigma_px=0.8, noise_sigma=2.0, seed=7
+    )
+    found = locate_objects(scene.image, joint)
+    assert len(found) == len(parts)
+    got = np.array(sorted((tuple(o.world_mm) for o in found), key=lambda p: p[0] + 2 * p[1]))
+    truth = scene.object_centroids_mm
+    want = truth[np.argsort(truth[:, 0] + 2 * truth[:, 1])]
+    assert np.abs(got - want).max() < 0.1
+    # A registration from touched corners of the board where the reference lay: robot mm.
+    turn = np.array([[0.0, -1.0], [1.0, 0.0]])
+    dots = [0, 6, 35, 41]
+    robot = CIRCLES.world_points()[dots] @ turn.T + np.array([500.0, 100.0])
+    registered = joint.register(robot, dots=dots)
+    at, std = registered.image_to_world(scene.object_centroids_px, frame="robot", return_std=True)
+    np.testing.assert_allclose(at, truth @ turn.T + np.array([500.0, 100.0]), atol=0.1)
+    assert (std > 0).all() and (std < 0.2).all()
