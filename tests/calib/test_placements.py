@@ -269,7 +269,7 @@ def test_locate_and_register_work_unchanged_over_the_whole_area(joint: Calibrati
     )
     found = locate_objects(scene.image, joint)
     assert len(found) == len(parts)
-    got = np.array(sorted((tuple(o.world_mm) for o in found), key=lambda p: p[0] + 2 * p[1]))
+    got = np.array(sorted((np.asarray(o.world_mm) for o in found), key=lambda p: p[0] + 2 * p[1]))
     truth = scene.object_centroids_mm
     want = truth[np.argsort(truth[:, 0] + 2 * truth[:, 1])]
     assert np.abs(got - want).max() < 0.1
