@@ -13,7 +13,9 @@ DESCRIPTION = (
     "Render the paper's setup (board, lens, blur, noise; then bolts and nuts at known "
     "places), calibrate, locate the objects, and say how far each is from the truth. Needs "
     "no camera and no files. --board chessboard or charuco puts a board of that type in the "
-    "paper's circle grid's place."
+    "paper's circle grid's place. --placements N renders a work area three boards wide "
+    "instead, the board photographed at N places on it, and calibrates from all the images "
+    "together."
 )
 
 
@@ -25,6 +27,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="circles",
         help="the board in the scene: the paper's circle grid (circles, the default), an "
         "11 x 8 chessboard of 24 mm squares or a 12 x 9 ChArUco board of 24 mm squares",
+    )
+    p.add_argument(
+        "--placements",
+        type=_placement_count,
+        default=None,
+        metavar="N",
+        help="a work area three boards wide: the board laid at N places (2-9: the middle, the "
+        "corners, the sides), one image each, calibrated together; the mapping's and the "
+        "parts' errors over the whole area against the truth, beside one placement alone",
     )
     p.add_argument(
         "--report",
@@ -44,5 +55,19 @@ def main(args: argparse.Namespace) -> int:
             )
         require_matplotlib()  # before the work: the figures cannot be drawn without it
         args.report.mkdir(parents=True, exist_ok=True)  # before the work, a bad place fails now
-    print(demo.run(report=args.report, board=args.board))
+    if args.placements is not None:
+        print(demo.run_placements(args.placements, report=args.report, board=args.board))
+    else:
+        print(demo.run(report=args.report, board=args.board))
     return 0
+
+
+def _placement_count(text: str) -> int:
+    """--placements: a whole number from 2 to 9."""
+    try:
+        count = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 2 <= count <= 9:
+        raise argparse.ArgumentTypeError(f"{count} placements: give 2 to 9")
+    return count

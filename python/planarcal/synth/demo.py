@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +29,7 @@ from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.boards import BOARD_TYPES, Board
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detection import detect_board
-from planarcal.errors import BoardError, MissingDependencyError
+from planarcal.errors import ArgumentError, BoardError, MissingDependencyError
 from planarcal.files import atomic_write
 from planarcal.live.objects import locate_objects
 from planarcal.report import summary_text, write_report
@@ -36,6 +37,7 @@ from planarcal.report.drawing import draw_objects, png_bytes
 from planarcal.report.figure import require_matplotlib
 from planarcal.report.printable.options import board_options
 from planarcal.synth import paper_data
+from planarcal.synth.objects import ObjectKind
 
 REPORT_EXAMPLE = "demo-report"
 """The directory the demo's closing lines suggest for ``planarcal demo --report``."""
@@ -118,24 +120,8 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None, board: str 
     truth_mm = objects_view.object_centroids_mm
     kinds = [o.kind for o in objects_view.objects]
     say(f"2. Objects image: {len(located)} objects found ({len(truth_mm)} placed)")
-    say(
-        f"   {'object':<7}{'kind':<6}{'image px':>18}{'located mm':>20}{'true mm':>18}"
-        f"{'error':>9}{'1-sigma':>9}{'angle':>8}{'true':>7}"
-    )
     true_angles = [o.angle_deg if o.kind == "bolt" else math.nan for o in objects_view.objects]
-    errors, matched = [], []
-    for o in located:
-        assert o.world_mm is not None and o.world_std_mm is not None
-        gap = np.linalg.norm(truth_mm - np.asarray(o.world_mm), axis=1)
-        j = int(gap.argmin())
-        errors.append(float(gap[j]))
-        matched.append(j)
-        say(
-            f"   ID:{o.id:<4}{kinds[j]:<6}{o.centroid_px[0]:>9.1f}{o.centroid_px[1]:>9.1f}"
-            f"{o.world_mm[0]:>10.2f}{o.world_mm[1]:>10.2f}"
-            f"{truth_mm[j][0]:>9.1f}{truth_mm[j][1]:>9.1f}{gap[j]:>6.3f} mm"
-            f"{o.world_std_mm:>9.3f}{_angle(o.angle_deg):>8}{_angle(true_angles[j]):>7}"
-        )
+    errors, matched = _object_rows(located, truth_mm, kinds, true_angles, say)
     if errors:
         say(
             f"   Located within {np.mean(errors):.3f} mm of the truth on average, "
@@ -198,6 +184,36 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None, board: str 
         say(f"Wrote to {folder}: {', '.join(p.name for p in written)}")
     out += _next_steps(shown)
     return "\n".join(out)
+
+
+def _object_rows(
+    located: Sequence[Any],
+    truth_mm: NDArray[np.float64],
+    kinds: Sequence[str],
+    true_angles: Sequence[float],
+    say: Callable[[str], None],
+) -> tuple[list[float], list[int]]:
+    """Says a header, then one row per located object (matched to the nearest true one: its
+    kind, pixel, position, truth, error, 1-sigma and angles); returns the errors and the
+    matches."""
+    say(
+        f"   {'object':<7}{'kind':<6}{'image px':>18}{'located mm':>20}{'true mm':>18}"
+        f"{'error':>9}{'1-sigma':>9}{'angle':>8}{'true':>7}"
+    )
+    errors, matched = [], []
+    for o in located:
+        assert o.world_mm is not None and o.world_std_mm is not None
+        gap = np.linalg.norm(truth_mm - np.asarray(o.world_mm), axis=1)
+        j = int(gap.argmin())
+        errors.append(float(gap[j]))
+        matched.append(j)
+        say(
+            f"   ID:{o.id:<4}{kinds[j]:<6}{o.centroid_px[0]:>9.1f}{o.centroid_px[1]:>9.1f}"
+            f"{o.world_mm[0]:>10.2f}{o.world_mm[1]:>10.2f}"
+            f"{truth_mm[j][0]:>9.1f}{truth_mm[j][1]:>9.1f}{gap[j]:>6.3f} mm"
+            f"{o.world_std_mm:>9.3f}{_angle(o.angle_deg):>8}{_angle(true_angles[j]):>7}"
+        )
+    return errors, matched
 
 
 def _next_steps(board: Board) -> list[str]:
@@ -278,3 +294,208 @@ def _std_of(objects: list[Any]) -> NDArray[np.float64]:
 
 def _rms(values: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(values**2))) if len(values) else math.nan
+
+
+PLACEMENT_STEP_MM = 5.0
+"""How densely ``run_placements`` samples the work area against the truth (mm)."""
+
+
+def run_placements(
+    count: int = 6,
+    seed: int = 0,
+    report: str | os.PathLike[str] | None = None,
+    board: str = "circles",
+) -> str:
+    """The demo of a work area larger than the board (``planarcal demo --placements N``): a
+    work cell three boards wide (:func:`planarcal.synth.render_cell`), the board photographed
+    at ``count`` places (2 to 9: the middle, the corners, the sides), calibrated from all the
+    images together (``Calibration.from_detections``), then parts located over the whole
+    area; says, against the truth, each placement's pose, the mapping's error over the whole
+    area and the parts' errors, beside what the middle placement alone (today's single-image
+    calibration, extrapolated) gives. With ``report``, a directory, also writes the
+    calibration report (the middle placement's detection drawn), calib.json, every placement's
+    image (placement-K.png), the parts' image and the parts located, drawn on it."""
+    if board not in BOARD_TYPES:
+        raise BoardError(f"board must be one of {', '.join(BOARD_TYPES)}, got {board!r}")
+    if isinstance(count, bool) or not isinstance(count, int) or not 2 <= count <= 9:
+        raise ArgumentError(f"placements must be 2 to 9, got {count!r}")
+    out: list[str] = []
+    say = out.append
+    start = time.perf_counter()
+    cell = synth.render_cell(board, count, seed=seed)
+    shown, cam, pose = cell.board, cell.camera, cell.pose
+    fx = cell.placements[0].scene.effects
+    w, h = cell.area_mm
+    say(
+        f"planarcal demo --placements {count}: a work area three boards wide, calibrated from "
+        f"{count} placements of one board (planarcal.synth, exact ground truth)"
+    )
+    say(
+        f"  {_board_words(shown)}, laid at {count} places on a {w:g} x {h:g} mm work area "
+        f"(3 x 3 of its {cell.board_size_mm[0]:g} x {cell.board_size_mm[1]:g} mm sheet), one "
+        f"image each, seen by a {cam.width} x {cam.height} camera from "
+        f"{pose.distance_mm:.0f} mm, tilted {pose.tilt_deg:g} degrees, through a lens with "
+        f"barrel distortion (k1 = {cam.k1:g}, k2 = {cam.k2:g}); blur "
+        f"{fx['blur_sigma_px']:g} px, noise {fx['noise_sigma']:g} grey levels, uneven lighting"
+    )
+    say("")
+
+    # 1. The placements, calibrated together; the middle one alone beside them.
+    names = [p.name for p in cell.placements]
+    detections = [detect_board(p.image, shown) for p in cell.placements]
+    cal = Calibration.from_detections(detections, reference=cell.reference, names=names)
+    alone = Calibration.from_detection(detections[cell.reference])
+    say(f"1. Calibration from the {count} images together")
+    say(summary_text(cal, detections[cell.reference]))
+    say("")
+    say("   Each placement's pose in the plane (the middle placement's board frame) against the")
+    say("   truth:")
+    say(
+        f"   {'placement':<18}{'angle deg':>10}{'offset mm':>20}{'true deg':>10}"
+        f"{'true mm':>20}{'error mm':>10}{'RMS px':>8}"
+    )
+    for p in cal.placements:
+        angle, offset = cell.true_pose(p.index)
+        gap = math.hypot(p.offset_mm[0] - offset[0], p.offset_mm[1] - offset[1])
+        say(
+            f"   {p.index:<3}{p.name:<15}{p.angle_deg:>10.3f}{p.offset_mm[0]:>10.2f}"
+            f"{p.offset_mm[1]:>10.2f}{angle:>10.3f}{offset[0]:>10.2f}{offset[1]:>10.2f}"
+            f"{gap:>10.4f}{p.rms_px:>8.3f}"
+        )
+    say("")
+
+    # 2. The mapping over the whole work area, against the truth.
+    table = cell.area_points(PLACEMENT_STEP_MM)
+    pixels, truth = cell.pixel_of(table), cell.truth_plane_mm(table)
+    say(
+        f"2. Mapping over the whole work area against the truth (a point every "
+        f"{PLACEMENT_STEP_MM:g} mm, {len(table):,} points, each from its exact pixel):"
+    )
+    area_errors = {}
+    for name, c in ((f"the {count} placements together", cal), ("the middle one alone", alone)):
+        mm, std = c.image_to_world(pixels, return_std=True, pixel_sigma=0.0)
+        err = np.hypot(*(mm - truth).T)
+        area_errors[name] = err
+        say(
+            f"   {name + ':':<32}mean {err.mean():.4f} mm, worst {err.max():.4f} mm; predicted "
+            f"1-sigma {_rms(std):.4f} mm RMS against {_rms(err):.4f} mm (lens: {c.lens_model})"
+        )
+    say(
+        "   One image calibrates where its board lay; beyond it the mapping is extrapolated, "
+        "and its 1-sigma does not know how far off it is. The placements tie the lens down "
+        "over the whole area."
+    )
+    if alone.lens_note:
+        say(f"   (The middle board alone: {alone.lens_note}.)")
+    say("")
+
+    # 3. Parts anywhere in the work area, located with each calibration.
+    parts = _cell_parts(cell)
+    objects_view = synth.render_scene(
+        cam, pose, board=None, objects=parts, seed=seed + 1, **_tones_and_effects(fx)
+    )
+    located = locate_objects(objects_view.image, cal)
+    truth_mm = cell.truth_plane_mm(objects_view.object_centroids_mm)
+    kinds = [o.kind for o in parts]
+    true_angles = [
+        o.angle_deg - cell.placements[cell.reference].angle_deg if o.kind == "bolt" else math.nan
+        for o in parts
+    ]
+    say(f"3. Parts over the whole work area: {len(located)} found ({len(parts)} placed)")
+    errors, _ = _object_rows(located, truth_mm, kinds, true_angles, say)
+    alone_located = locate_objects(objects_view.image, alone)
+    alone_errors = [
+        float(np.linalg.norm(truth_mm - np.asarray(o.world_mm), axis=1).min())
+        for o in alone_located
+        if o.world_mm is not None
+    ]
+    if errors:
+        say(
+            f"   Located within {np.mean(errors):.3f} mm of the truth on average, "
+            f"{max(errors):.3f} mm at worst (1-sigma {_rms(_std_of(located)):.3f} mm RMS); with "
+            f"the middle placement alone: {np.mean(alone_errors):.3f} mm on average, "
+            f"{max(alone_errors):.3f} mm at worst."
+        )
+    say("")
+    say(f"Rendered, calibrated and located in {time.perf_counter() - start:.1f} s.")
+    again = "" if board == "circles" else f" --board {board}"
+    if report is None:
+        try:
+            require_matplotlib()
+            extra = ""
+        except MissingDependencyError:
+            extra = " (after: pip install 'planarcal[report]')"
+        say(
+            f"To see the figures and the images: planarcal demo --placements {count}{again} "
+            f"--report {REPORT_EXAMPLE}{extra}"
+        )
+    else:
+        reference = cell.placements[cell.reference]
+        written = write_report(
+            cal, report, image=reference.image, detection=detections[cell.reference]
+        )
+        folder = Path(report)
+        written.append(cal.save(folder / "calib.json"))
+        written += [
+            atomic_write(folder / f"placement-{p.index}.png", png_bytes(p.image))
+            for p in cell.placements
+        ]
+        written += [
+            atomic_write(folder / "objects.png", png_bytes(objects_view.image)),
+            atomic_write(
+                folder / "located.png", png_bytes(draw_objects(objects_view.image, located))
+            ),
+        ]
+        say(f"Wrote to {folder}: {', '.join(p.name for p in written)}")
+    out += _placement_steps(shown, names)
+    return "\n".join(out)
+
+
+def _cell_parts(cell: synth.Cell) -> list[synth.SceneObject]:
+    """Twelve parts spread over the whole work area (table mm): nuts, bolts and washers on a
+    4 x 3 grid, at varied angles."""
+    w, h = cell.area_mm
+    kinds: list[tuple[ObjectKind, float, float | None]] = [
+        ("nut", 8.0, None),
+        ("bolt", 6.0, 30.0),
+        ("washer", 8.0, None),
+    ]
+    parts = []
+    for k, (ax, ay) in enumerate((x, y) for y in (0.16, 0.5, 0.84) for x in (0.1, 0.37, 0.63, 0.9)):
+        kind, size, length = kinds[k % 3]
+        parts.append(
+            synth.SceneObject(
+                kind, (ax * w, ay * h), angle_deg=17.0 * k - 40.0, size_mm=size, length_mm=length
+            )
+        )
+    return parts
+
+
+def _tones_and_effects(effects: Any) -> dict[str, Any]:
+    """render_scene's tone and effect arguments from a scene's recorded effects."""
+    names = (
+        "table_grey",
+        "paper_grey",
+        "ink_grey",
+        "metal_grey",
+        "blur_sigma_px",
+        "noise_sigma",
+        "lighting_gradient",
+        "lighting_angle_deg",
+        "vignette",
+    )
+    return {name: effects[name] for name in names}
+
+
+def _placement_steps(board: Board, names: Sequence[str]) -> list[str]:
+    """NEXT_STEPS for several placements: the board's options spelt out, one image per place."""
+    steps = list(NEXT_STEPS)
+    printing = " ".join(board_options(board, for_printing=True))
+    steps[1] = f"  planarcal board {printing} -o board.pdf    # print at 100%"
+    images = " ".join(f"{name.replace(' ', '-')}.png" for name in names)
+    options = " ".join(board_options(board))
+    steps[2] = (
+        f"  planarcal calibrate {images} {options} -o calib.json --report report"
+        "    # the board laid flat at each place, the camera fixed"
+    )
+    return steps
