@@ -10,8 +10,9 @@ import pytest
 from numpy.typing import NDArray
 
 from planarcal.calib.board import CircleGridBoard
+from planarcal.calib.calibration import Calibration
 from planarcal.calib.detection import BoardDetection, detect_board
-from planarcal.errors import ArgumentError
+from planarcal.errors import ArgumentError, PlacementError
 from planarcal.synth.cell import (
     CELL_BOARDS,
     PAPER_MARGIN_MM,
@@ -234,3 +235,32 @@ def test_bad_queries_raise_argument_error(chessboard: Cell) -> None:
     with pytest.raises(ArgumentError, match="detection must be a BoardDetection"):
         mirrored_detection("detection")  # type: ignore[arg-type]
     assert set(CELL_BOARDS) == {"circles", "chessboard", "charuco"}
+
+
+def test_a_calibration_from_the_cell_maps_the_whole_area_to_its_truth(chessboard: Cell) -> None:
+    detections = [detect_board(image, chessboard.board) for image in chessboard.images]
+    cal = Calibration.from_detections(detections, reference=chessboard.reference)
+    table = chessboard.area_points(20.0)
+    mm = cal.image_to_world(chessboard.pixel_of(table))
+    err = np.hypot(*(mm - chessboard.truth_plane_mm(table)).T)
+    assert err.mean() < 0.02 and err.max() < 0.1
+    for p in cal.placements:
+        angle, offset = chessboard.true_pose(p.index)
+        assert abs(p.angle_deg - angle) < 0.01
+        assert np.hypot(*(np.array(p.offset_mm) - offset)) < 0.05
+    # The same pixels through the reference board alone, extrapolated: far worse away from it.
+    alone = Calibration.from_detection(detections[chessboard.reference])
+    far = chessboard.distance_to_boards_mm(table, 1) > 100.0
+    alone_err = np.hypot(
+        *(alone.image_to_world(chessboard.pixel_of(table)) - chessboard.truth_plane_mm(table)).T
+    )
+    assert alone_err[far].mean() > 20 * err[far].mean()
+
+
+@pytest.mark.parametrize("bad", [4, 5], ids=["on a 10 mm part", "lifted 3 mm"])
+def test_a_board_not_flat_is_named(circles: Cell, bad: int) -> None:
+    images = [*circles.images[:4], circles.images[bad]]
+    detections = [detect_board(image, circles.board) for image in images]
+    with pytest.raises(PlacementError) as caught:
+        Calibration.from_detections(detections)
+    assert caught.value.placement == 4
