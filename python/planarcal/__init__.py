@@ -35,6 +35,7 @@ from planarcal._core import __version__
 # time (tests/test_lazy_exports.py keeps the two and __all__ the same).
 if TYPE_CHECKING:
     from planarcal.calib.board import CircleGridBoard
+    from planarcal.calib.board_copies import detect_board_copies
     from planarcal.calib.boards import Board
     from planarcal.calib.calibration import (
         Calibration,
@@ -111,6 +112,7 @@ if TYPE_CHECKING:
 
 _EXPORTS: dict[str, tuple[str, ...]] = {
     "planarcal.calib.board": ("CircleGridBoard",),
+    "planarcal.calib.board_copies": ("detect_board_copies",),
     "planarcal.calib.boards": ("Board",),
     "planarcal.calib.charuco": ("CharucoBoard",),
     "planarcal.calib.chessboard": ("ChessboardBoard",),
@@ -270,6 +272,7 @@ __all__ = [
     "__version__",
     "calibrate_camera",
     "detect_board",
+    "detect_board_copies",
     "detect_objects",
     "error_stats",
     "estimate_homography",

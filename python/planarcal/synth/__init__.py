@@ -42,6 +42,8 @@ The modules, from the bottom up:
 * ``corpus``: :data:`BOARD_VARIANTS`, :func:`board_variant`, :func:`board_variants`.
 * ``cell``: :func:`render_cell`, a work cell several boards wide with the board photographed
   at several placements (:class:`Cell`), and :func:`mirrored_detection`.
+* ``copies``: :func:`render_copies`, several copies of a board in one image, each with
+  its truth (:class:`RenderedCopies`).
 * ``demo`` and ``paper_data``: the built-in demo and the paper's published numbers.
 """
 
@@ -49,6 +51,7 @@ from __future__ import annotations
 
 from planarcal.synth.camera import CameraModel, PlanePose, View
 from planarcal.synth.cell import Cell, CellPlacement, mirrored_detection, render_cell
+from planarcal.synth.copies import BoardCopy, RenderedCopies, relative_pose, render_copies
 from planarcal.synth.corpus import (
     BOARD_VARIANTS,
     CHARUCO_VARIANTS,
@@ -88,6 +91,7 @@ __all__ = [
     "PAPER_OBJECTS",
     "PAPER_POSE",
     "VARIANTS_BY_KIND",
+    "BoardCopy",
     "BoardVariant",
     "CameraModel",
     "Cell",
@@ -96,6 +100,7 @@ __all__ = [
     "ObjectKind",
     "PaperScene",
     "PlanePose",
+    "RenderedCopies",
     "RenderedScene",
     "SceneObject",
     "Silhouette",
@@ -108,6 +113,8 @@ __all__ = [
     "paper_scene",
     "printed_marks",
     "random_paper_scene",
+    "relative_pose",
     "render_cell",
+    "render_copies",
     "render_scene",
 ]
