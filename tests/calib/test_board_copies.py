@@ -5,6 +5,9 @@ places and angles; every copy found as it would be alone, and one calibration fr
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import cv2
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -109,11 +112,13 @@ def _area(rendered: RenderedCopies) -> tuple[F64, F64]:
     return table, rendered.pixel_of(table)
 
 
-def test_copies_mix_with_an_image_of_a_single_placement() -> None:
+def test_copies_mix_with_an_image_of_a_single_placement(tmp_path: Path) -> None:
     board = BOARDS["circles"]
     copies = render_copies(board, PLACES["circles"][:2], seed=5, effects=EFFECTS)
     other = render_copies(board, [(300.0, 300.0, 60.0)], pose=copies.pose, seed=6, effects=EFFECTS)
-    found = detect_board_copies(copies.image, board)
+    path = tmp_path / "copies.png"
+    assert cv2.imwrite(str(path), cv2.cvtColor(copies.image, cv2.COLOR_GRAY2BGR))
+    found = detect_board_copies(path, board)  # a file, read as BGR
     assert len(found) == 2
     cal = Calibration.from_detections(
         [*found, detect_board(other.image, board)], names=["copy 0", "copy 1", "alone"]
