@@ -181,6 +181,7 @@ REPORT_FILES = {
     "deviations.png",
     "lens.png",
     "uncertainty.png",
+    "coverage.png",
     "detection.png",
 }
 PNG_END = b"IEND\xaeB`\x82"  # the last chunk of every PNG

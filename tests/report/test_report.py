@@ -53,6 +53,7 @@ REPORT_FILES = {
     "deviations.png",
     "lens.png",
     "uncertainty.png",
+    "coverage.png",
     "detection.png",
 }
 
@@ -252,7 +253,9 @@ def test_every_figure_without_a_lens_model(
     json.dumps(report.summary_json(c), allow_nan=False)
     assert "Reprojection error (px)" in report.summary_text(c)
     written = report.write_report(c, tmp_path / "report")
-    assert {p.name for p in written} == REPORT_FILES - {"detection.png"}
+    # No image size (the paper's points), no map over the image.
+    no_image = {"detection.png"} | ({"coverage.png"} if c.image_size is None else set())
+    assert {p.name for p in written} == REPORT_FILES - no_image
     assert sorted(p.name for p in (tmp_path / "report").iterdir()) == sorted(
         p.name for p in written
     )

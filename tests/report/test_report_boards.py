@@ -317,6 +317,7 @@ def test_write_report_of_a_partial_view(corner: Seen, tmp_path: Path) -> None:
         "deviations.png",
         "lens.png",
         "uncertainty.png",
+        "coverage.png",
         "detection.png",
     }
     for p in written:

@@ -405,6 +405,7 @@ def test_drawing_the_report_leaves_the_hosts_backend_alone(
     assert seen["before"] == seen["after"] == seen["rc_backend"] == backend
     assert seen["pyplot"] is False  # the OO API alone: pyplot's state is never touched
     assert seen["written"] == [
+        "coverage.png",
         "detection_failed.png",
         "deviations.png",
         "lens.png",

@@ -617,8 +617,9 @@ def _check_fields(data: dict[str, Any], version: int, source: str) -> None:
         if key != "summary" and version >= since.get(key, 0):  # summary: _stored_residuals
             _field(data, key, source)
     for key, first in since.items():
-        # A null registration is none, as in the versions before it.
-        if key in data and version < first and not (key == "robot_frame" and data[key] is None):
+        # A null registration (or placements) is none, as in the versions before it.
+        null_is_none = key in ("robot_frame", "placements") and data.get(key) is None
+        if key in data and version < first and not null_is_none:
             raise CalibrationFileError(
                 f"{source}: a version {version} file has no {key} (files have one from "
                 f"version {first}): its version was edited?"
