@@ -32,6 +32,7 @@ from planarcal.errors import (
 )
 from planarcal.live.objects import locate_objects
 from planarcal.synth import CameraModel, PlanePose, SceneObject, render_scene
+from planarcal.synth.copies import render_copies
 
 F64 = NDArray[np.float64]
 
@@ -281,3 +282,33 @@ def test_locate_and_register_work_unchanged_over_the_whole_area(joint: Calibrati
     at, std = registered.image_to_world(scene.object_centroids_px, frame="robot", return_std=True)
     np.testing.assert_allclose(at, truth @ turn.T + np.array([500.0, 100.0]), atol=0.1)
     assert (std > 0).all() and (std < 0.2).all()
+
+
+def test_copies_laid_out_at_once_are_placements_too(tmp_path: Path) -> None:
+    # Two images: three copies of a marked chessboard at once, then one more copy alone.
+    board = ChessboardBoard(5, 4, 20.0, origin_marker=True)
+    together = render_copies(
+        board, [(80.0, 70.0, 0.0), (270.0, 110.0, 30.0), (110.0, 250.0, -20.0)]
+    )
+    alone = render_copies(board, [(300.0, 280.0, 90.0)], pose=together.pose)
+    paths = [tmp_path / "three.png", tmp_path / "one.png"]
+    cv2.imwrite(str(paths[0]), together.image)
+    cv2.imwrite(str(paths[1]), alone.image)
+    cal = Calibration.from_images(paths, board, copies=True, turned=True)
+    names = [p.name for p in cal.placements]
+    assert names == ["three.png copy 1", "three.png copy 2", "three.png copy 3", "one.png copy 1"]
+    copies = [*together.copies, *alone.copies]
+    # Every copy's points where it lay, in the first copy's frame.
+    for placement, copy in zip(cal.placements, copies, strict=True):
+        first = together.copies[0]
+        c, s = np.cos(np.radians(first.angle_deg)), np.sin(np.radians(first.angle_deg))
+        rel = (copy.points_mm[placement.ids] - first.origin_mm) @ np.array([[c, -s], [s, c]])
+        assert np.abs(placement.plane_mm - rel).max() < 0.05
+    run = subprocess.run(
+        [sys.executable, "-m", "planarcal", "calibrate", *map(str, paths), "--copies",
+         "--turned", "--type", "chessboard", "--cols", "5", "--rows", "4", "--square", "20",
+         "--origin-marker", "-o", str(tmp_path / "c.json"), "--json"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert len(json.loads(run.stdout)["placements"]) == 4

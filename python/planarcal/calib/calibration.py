@@ -69,6 +69,7 @@ from planarcal.calib.lens_model import LENS_MODELS, LensModel
 from planarcal.calib.placement_set import (
     calibration_placements,
     checked_reference,
+    detect_copies,
     detect_placement,
     placement_layout,
     placement_names,
@@ -502,10 +503,14 @@ class Calibration:
         lens: LensChoice = "auto",
         intrinsics: CameraIntrinsics | None = None,
         names: Sequence[str] | None = None,
+        copies: bool = False,
         **detector_options: Any,
     ) -> Calibration:
         """``from_detections`` of `board` detected in each of `images` (arrays or paths; a
-        path's file name is its placement's name unless ``names`` are given)."""
+        path's file name is its placement's name unless ``names`` are given, one per image).
+        ``copies=True``: each image may show several copies of the board laid out at once
+        (planarcal.detect_board_copies), each copy a placement ("A.png copy 1", ... in
+        reading order), `reference` counting the copies."""
         if not is_board(board):
             raise BoardError(
                 f"board must be one of planarcal's boards ({', '.join(BOARD_TYPES)}), got "
@@ -523,11 +528,20 @@ class Calibration:
                 for k, im in enumerate(images)
             ]
         labels = placement_names(names, len(images))
-        reference = checked_reference(reference, len(images))
-        detections = [
-            detect_placement(im, board, k, reference, labels[k], detector_options)
-            for k, im in enumerate(images)
-        ]
+        if copies:
+            detections, found = [], []
+            for k, im in enumerate(images):
+                seen, called = detect_copies(im, board, k, labels[k], detector_options)
+                detections += seen
+                found += called
+            labels = tuple(found)
+            reference = checked_reference(reference, len(detections))
+        else:
+            reference = checked_reference(reference, len(images))
+            detections = [
+                detect_placement(im, board, k, reference, labels[k], detector_options)
+                for k, im in enumerate(images)
+            ]
         return cls.from_detections(
             detections, reference=reference, lens=lens, intrinsics=intrinsics, names=labels
         )

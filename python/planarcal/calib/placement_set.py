@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from planarcal.calib.board_copies import detect_board_copies
 from planarcal.calib.boards import Board, is_board
 from planarcal.calib.detection import detect_board
 from planarcal.calib.detector_options import detector_options
@@ -98,6 +99,19 @@ def detect_placement(
         return detect_board(image, board, **options)
     except BoardNotFoundError as e:
         raise type(e)(f"placement {k} ({name}): {e}", e.diagnostics) from None
+
+
+def detect_copies(
+    image: Any, board: Board, k: int, name: str, options: dict[str, Any]
+) -> tuple[list[Any], list[str]]:
+    """Every copy of `board` in image k (calib.board_copies: several boards laid out at once,
+    each a placement), with their names ("A.png copy 1", ...); BoardNotFoundError names the
+    image."""
+    try:
+        found = detect_board_copies(image, board, **options)
+    except BoardNotFoundError as e:
+        raise type(e)(f"image {k} ({name}): {e}", e.diagnostics) from None
+    return found, [f"{name} copy {j + 1}" for j in range(len(found))]
 
 
 def placement_layout(detections: Sequence[Any], reference: int) -> PlacementLayout:

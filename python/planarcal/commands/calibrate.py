@@ -19,7 +19,7 @@ from planarcal.calib.boards import Board
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detection import detect_board
 from planarcal.calib.detector_options import detector_options
-from planarcal.calib.placement_set import detect_placement
+from planarcal.calib.placement_set import detect_copies, detect_placement
 from planarcal.camera import CameraIntrinsics
 from planarcal.commands import board_arguments, board_from, count, not_a_folder, positive
 from planarcal.errors import BoardNotFoundError, ImageError
@@ -57,12 +57,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="image of the board; several: one per placement of the board on the plane",
     )
     p.add_argument(
+        "--copies",
+        action="store_true",
+        help="each IMAGE may show several copies of the board laid out at once: each copy is "
+        "a placement (in reading order; add --turned for copies lying at any angle)",
+    )
+    p.add_argument(
         "--origin",
         type=int,
         default=0,
         metavar="K",
-        help="with several images: the placement (0-based, in the order given) whose board "
-        "frame is the plane's (0, the first)",
+        help="with several placements: the one (0-based, in the order given; with --copies "
+        "counting the copies) whose board frame is the plane's (0, the first)",
     )
     p.add_argument(
         "--max-error-mm",
@@ -185,18 +191,7 @@ def main(args: argparse.Namespace) -> int:
     options = _detector_options(args, board)
     images = _read_images(args)
     names = [p.name for p in args.image] if args.image else ["camera"]
-    reference = _origin(args, len(images))
-    detections = []
-    for k, image in enumerate(images):
-        try:
-            detections.append(
-                detect_placement(image, board, k, reference, names[k], options)
-                if len(images) > 1
-                else detect_board(image, board, **options)
-            )
-        except BoardNotFoundError as e:
-            _draw_failure(args, image, e)
-            raise
+    detections, shown, names, reference = _detect(args, board, options, images, names)
     lens = args.lens
     if intrinsics is not None and lens == "auto":
         lens = "none"
@@ -219,7 +214,7 @@ def main(args: argparse.Namespace) -> int:
             intrinsics=intrinsics,
         )
     detection = detections[reference]
-    image = images[reference]
+    image = shown[reference]
     if args.measured_pitch is not None:
         cal = cal.rescaled(*args.measured_pitch)
     elif args.check_bar is not None:
@@ -248,6 +243,47 @@ def main(args: argparse.Namespace) -> int:
         for p in written:
             print(f"Wrote {p}")
     return 0
+
+
+def _detect(
+    args: argparse.Namespace,
+    board: Board,
+    options: dict[str, object],
+    images: list[Any],
+    names: list[str],
+) -> tuple[list[Any], list[Any], list[str], int]:
+    """Every placement's detection (each image's, or with --copies each copy's), the image
+    each was found in, their names and the reference placement; with --report, what the
+    search saw where the board was not found is drawn before the error propagates."""
+    detections: list[Any] = []
+    shown: list[Any] = []  # each detection's image
+    if args.copies:
+        found_names: list[str] = []
+        for k, image in enumerate(images):
+            try:
+                found, called = detect_copies(image, board, k, names[k], options)
+            except BoardNotFoundError as e:
+                _draw_failure(args, image, e)
+                raise
+            detections += found
+            shown += [image] * len(found)
+            found_names += called
+        names = found_names
+        reference = _origin(args, len(detections))
+    else:
+        reference = _origin(args, len(images))
+        for k, image in enumerate(images):
+            try:
+                detections.append(
+                    detect_placement(image, board, k, reference, names[k], options)
+                    if len(images) > 1
+                    else detect_board(image, board, **options)
+                )
+            except BoardNotFoundError as e:
+                _draw_failure(args, image, e)
+                raise
+        shown = images
+    return detections, shown, names, reference
 
 
 def _draw_failure(args: argparse.Namespace, image: Any, e: BoardNotFoundError) -> None:
