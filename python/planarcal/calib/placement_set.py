@@ -15,7 +15,13 @@ from planarcal.calib.board_copies import detect_board_copies
 from planarcal.calib.boards import Board, is_board
 from planarcal.calib.detection import detect_board
 from planarcal.calib.detector_options import detector_options
-from planarcal.calib.placements import Placement, PlacementLayout, residual_rms, start_poses
+from planarcal.calib.placements import (
+    Placement,
+    PlacementLayout,
+    placement_label,
+    residual_rms,
+    start_poses,
+)
 from planarcal.errors import ArgumentError, BoardError, BoardNotFoundError, FrameSizeError
 
 if TYPE_CHECKING:
@@ -61,22 +67,22 @@ def same_camera_and_board(
     for k, d in enumerate(detections):
         if not is_board(getattr(d, "board", None)) or not hasattr(d, "world_points"):
             raise ArgumentError(
-                f"placement {k} ({names[k]}) must be a BoardDetection (planarcal.detect_board's "
-                f"result), got {type(d).__name__}"
+                f"{placement_label(k, names[k])} must be a BoardDetection "
+                f"(planarcal.detect_board's result), got {type(d).__name__}"
             )
     board: Board = detections[0].board
     size = (int(detections[0].image_size[0]), int(detections[0].image_size[1]))
     for k, d in enumerate(detections[1:], start=1):
         if d.board != board:
             raise BoardError(
-                f"placement {k} ({names[k]}) is of another board ({d.board.describe()}) than "
+                f"{placement_label(k, names[k])} is of another board ({d.board.describe()}) than "
                 f"placement 0 ({board.describe()}): placements are one board laid at several "
                 "places"
             )
         other = (int(d.image_size[0]), int(d.image_size[1]))
         if other != size:
             raise FrameSizeError(
-                f"placement {k} ({names[k]}) is a {other[0]} x {other[1]} image, placement 0 "
+                f"{placement_label(k, names[k])} is a {other[0]} x {other[1]} image, placement 0 "
                 f"a {size[0]} x {size[1]} one: placements are seen by one fixed camera at one "
                 "resolution",
                 other,
@@ -98,7 +104,7 @@ def detect_placement(
     try:
         return detect_board(image, board, **options)
     except BoardNotFoundError as e:
-        raise type(e)(f"placement {k} ({name}): {e}", e.diagnostics) from None
+        raise type(e)(f"{placement_label(k, name)}: {e}", e.diagnostics) from None
 
 
 def detect_copies(

@@ -122,9 +122,15 @@ class Placement:
         )
         part = ", partial view" if self.partial else ""
         return (
-            f"placement {self.index} ({self.name}): {len(self.ids)} points{part}, {where}; "
+            f"{placement_label(self.index, self.name)}: {len(self.ids)} points{part}, {where}; "
             f"residuals {self.rms_px:.3f} px RMS"
         )
+
+
+def placement_label(k: int, name: str) -> str:
+    """ "placement k (name)", or "placement k" where the name says no more."""
+    own = f"placement {k}"
+    return own if name == own else f"{own} ({name})"
 
 
 def start_poses(
@@ -255,7 +261,7 @@ def check_placements(
     score, k, seen = worst
     mine = layout.placement == k
     raise PlacementError(
-        f"placement {k} ({names[k]}) does not fit the plane the other placements define: "
+        f"{placement_label(k, names[k])} does not fit the plane the other placements define: "
         f"held out, its points land {score:.0f} times farther from a board laid flat than "
         f"the others' fit predicts; {misfit(layout.board_mm[mine], seen)}. Take that image "
         "again with the board flat on the plane, or leave it out",
