@@ -2,7 +2,7 @@
 calibrated from one placement of the board against several placements fitted jointly.
 
 Rendered work cells (planarcal.synth.render_cell: a 1280 x 960 camera with barrel distortion
-tilted 8 degrees over a work area three board papers wide and high, blur, noise and uneven
+tilted 8 degrees over a work area three and four board papers wide and high (AREAS), blur, noise and uneven
 light as the paper's scenes), a circle grid (9 x 7 dots, 20 mm apart) and a chessboard (9 x 6
 corners, 20 mm squares), the board at 9 places (the middle, the corners, the sides' middles)
 at angles within 35 degrees, several seeds. Over a grid of the whole work area (a point every
@@ -49,6 +49,9 @@ F64 = NDArray[np.float64]
 
 BOARDS = ("circles", "chessboard")
 COUNTS = (4, 6, 9)
+AREAS = (3.0, 4.0)
+"""Work areas, in board papers across (the camera framing each): the board covers less of
+the image, and the placements leave more of the area between them, the larger it is."""
 STEP_MM = 5.0
 MEAN_LIMIT_MM, WORST_LIMIT_MM = 0.02, 0.1
 RATIO_BAND = (0.67, 1.5)
@@ -130,12 +133,13 @@ def _detections(cell: Cell) -> list[BoardDetection]:
     return [detect_board(image, cell.board) for image in cell.images]
 
 
-def accuracy(board: str, seeds: int) -> dict[str, Pooled]:
-    """Each method's pooled errors on ``seeds`` cells of ``board`` (9 placements each)."""
+def accuracy(board: str, seeds: int, area_boards: float) -> dict[str, Pooled]:
+    """Each method's pooled errors on ``seeds`` cells of ``board`` (9 placements each) over a
+    work area ``area_boards`` papers across."""
     methods: dict[str, Pooled] = {"one, lens auto": Pooled(), "one, lens k1": Pooled()}
     methods.update({f"{k} placements": Pooled() for k in COUNTS})
     for seed in range(seeds):
-        cell = render_cell(board, max(COUNTS), seed=seed)
+        cell = render_cell(board, max(COUNTS), seed=seed, area_boards=area_boards)
         detections = _detections(cell)
         area = AreaTruth.of(cell)
         reference = detections[cell.reference]
@@ -150,7 +154,7 @@ def accuracy(board: str, seeds: int) -> dict[str, Pooled]:
             cal, s = _timed(Calibration.from_detections, detections[:k])
             _measure(methods[f"{k} placements"], cal, cell, area, k, s)
         print(
-            f"{board} seed {seed}: "
+            f"{board} {area_boards:g} boards seed {seed}: "
             + ", ".join(
                 f"{n} {p.errors[-1].mean():.4f}/{p.errors[-1].max():.4f}"
                 for n, p in methods.items()
@@ -251,11 +255,12 @@ def placements_section(seeds: int, failure_seeds: int, md: bool) -> bool:
     start = time.perf_counter()
     rows, accurate, honest = [], True, True
     lo, hi = RATIO_BAND
-    for board in BOARDS:
-        for name, p in accuracy(board, seeds).items():
+    for board, area_boards in ((b, a) for a in AREAS for b in BOARDS):
+        for name, p in accuracy(board, seeds, area_boards).items():
             joint = "placements" in name
+            area_text = f"{area_boards:g} x {area_boards:g}"
             if not p.errors:
-                rows.append([board, name, f"({p.refused} refused)", *["-"] * 7])
+                rows.append([area_text, board, name, f"({p.refused} refused)", *["-"] * 7])
                 continue
             on, away = p.ratio("on"), p.ratio("away")
             if joint:
@@ -263,6 +268,7 @@ def placements_section(seeds: int, failure_seeds: int, md: bool) -> bool:
                 honest = honest and all(lo <= r <= hi for r in (on, away) if np.isfinite(r))
             rows.append(
                 [
+                    area_text,
                     board,
                     name,
                     ", ".join(sorted(p.lens)) + (f" ({p.refused} refused)" if p.refused else ""),
@@ -276,13 +282,15 @@ def placements_section(seeds: int, failure_seeds: int, md: bool) -> bool:
                 ]
             )
     out.heading(
-        f"Placements: a work area 3 x 3 boards large, one placement against several "
-        f"({seeds} cell{'s' if seeds != 1 else ''} per board, a point every {STEP_MM:g} mm)"
+        f"Placements: work areas {' and '.join(f'{a:g} x {a:g}' for a in AREAS)} boards large, "
+        f"one placement against several ({seeds} cell{'s' if seeds != 1 else ''} per board "
+        f"and area, a point every {STEP_MM:g} mm)"
     )
     _table(
         md,
-        3,
+        4,
         [
+            "area (boards)",
             "board",
             "calibrated from",
             "lens",
