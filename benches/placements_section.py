@@ -2,12 +2,12 @@
 calibrated from one placement of the board against several placements fitted jointly.
 
 Rendered work cells (planarcal.synth.render_cell: a 1280 x 960 camera with barrel distortion
-tilted 8 degrees over a work area three and four board papers wide and high (AREAS), blur, noise and uneven
-light as the paper's scenes), a circle grid (9 x 7 dots, 20 mm apart) and a chessboard (9 x 6
-corners, 20 mm squares), the board at 9 places (the middle, the corners, the sides' middles)
-at angles within 35 degrees, several seeds. Over a grid of the whole work area (a point every
-5 mm) each point's exact pixel is mapped through the calibration and compared with the truth
-in the plane frame (the reference placement's, the middle one's, board frame):
+tilted 8 degrees over a work area three and four board papers wide and high (AREAS), blur,
+noise and uneven light as the paper's scenes), a circle grid (9 x 7 dots, 20 mm apart) and a
+chessboard (9 x 6 corners, 20 mm squares), the board at 9 places (the middle, the corners, the
+sides' middles) at angles within 35 degrees, several seeds. Over a grid of the whole work area
+(a point every 5 mm) each point's exact pixel is mapped through the calibration and compared
+with the truth in the plane frame (the reference placement's, the middle one's, board frame):
 
 * **one placement** (the reference, as today's single-view calibration) extrapolated over
   the area, with the lens model "auto" chooses (none: the board in the middle is too small
