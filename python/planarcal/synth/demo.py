@@ -432,7 +432,11 @@ def run_placements(
     else:
         reference = cell.placements[cell.reference]
         written = write_report(
-            cal, report, image=reference.image, detection=detections[cell.reference]
+            cal,
+            report,
+            image=reference.image,
+            detection=detections[cell.reference],
+            placement_images=[p.image for p in cell.placements],
         )
         folder = Path(report)
         written.append(cal.save(folder / "calib.json"))
