@@ -260,11 +260,11 @@ def check_placements(
         return
     score, k, seen = worst
     mine = layout.placement == k
+    what, redo = misfit(layout.board_mm[mine], seen)
     raise PlacementError(
         f"{placement_label(k, names[k])} does not fit the plane the other placements define: "
         f"held out, its points land {score:.0f} times farther from a board laid flat than "
-        f"the others' fit predicts; {misfit(layout.board_mm[mine], seen)}. Take that image "
-        "again with the board flat on the plane, or leave it out",
+        f"the others' fit predicts; {what}; {redo}",
         placement=k,
     )
 
@@ -301,27 +301,32 @@ def _relative_to(poses: F64, r: int) -> F64:
     return out
 
 
-def misfit(board_mm: F64, seen_mm: F64) -> str:
-    """What a placement's misfit looks like, from the homography carrying its board points
-    to where the plane puts its pixels (a correct, flat placement's is a rotation and a
-    translation): a mirror, a scale (lying on something), a squeeze (lifted on one side), or
-    points that fit no one board (a wrong detection)."""
+REDO_FLAT = "take that image again with the board flat on the plane, or leave it out"
+REDO_DETECTION = "check the board's description (its size, layout, origin), or leave that image out"
+
+
+def misfit(board_mm: F64, seen_mm: F64) -> tuple[str, str]:
+    """What a placement's misfit looks like, and what to do, from the homography carrying its
+    board points to where the plane puts its pixels (a correct, flat placement's is a
+    rotation and a translation): a mirror or points that fit no one board (a wrong detection),
+    a scale (lying on something) or a squeeze (lifted on one side)."""
     try:
         g = estimate_homography(board_mm, seen_mm, "normalized_dlt", True)
     except HomographyError:
-        return "its points do not lie on one board as described: a wrong detection"
+        return "its points do not lie on one board as described: a wrong detection", REDO_DETECTION
     spread = float(np.sqrt(np.mean(np.sum((transform_points(g, board_mm) - seen_mm) ** 2, 1))))
     step = np.hypot(*np.diff(board_mm, axis=0).T)
     pitch = float(np.median(step[step > 0])) if (step > 0).any() else 1.0
     if spread > 0.05 * pitch:
         return (
             "its points do not fit one board seen through one homography either: a wrong "
-            "detection (points matched to the wrong ids)"
+            "detection (points matched to the wrong ids)",
+            REDO_DETECTION,
         )
     a = g[:2, :2] / g[2, 2]
     det = float(np.linalg.det(a))
     if det < 0:
-        return "it is seen mirrored: a wrong detection or board description"
+        return "it is seen mirrored: a wrong detection or board description", REDO_DETECTION
     sv = np.linalg.svd(a, compute_uv=False)
     scale = math.sqrt(det)
     squeeze = float(sv[1] / sv[0])
@@ -329,10 +334,12 @@ def misfit(board_mm: F64, seen_mm: F64) -> str:
         side = "nearer the camera: lying on something" if scale > 1 else "farther than it"
         return (
             f"it is seen {abs(scale - 1.0):.2%} {'larger' if scale > 1 else 'smaller'} than a "
-            f"board on the plane ({side}), not flat on the plane"
+            f"board on the plane ({side}), not flat on the plane",
+            REDO_FLAT,
         )
-    tilt = math.degrees(math.acos(min(1.0, squeeze)))
+    # A board lifted on one side is seen larger towards that side: a squeeze and a slope.
     return (
-        f"it is seen squeezed by {1.0 - squeeze:.2%} across one direction, as a board tilted "
-        f"about {tilt:.1f} degrees: lifted on one side, not flat on the plane"
+        f"it is seen squeezed by {1.0 - squeeze:.2%} across one direction: lifted on one side "
+        "(or bent), not flat on the plane",
+        REDO_FLAT,
     )
