@@ -377,13 +377,13 @@ class Calibration:
                 f"detect_board's results), got {type(detections).__name__}"
             )
         labels = placement_names(names, len(dets))
+        reference = checked_reference(reference, len(dets))
         if len(dets) == 1:
             cal = cls.from_detection(dets[0], lens=lens, intrinsics=intrinsics)
             cal._placement_names = labels
             cal._placement_partial = (bool(dets[0].partial),)
             return cal
         board, size = same_camera_and_board(dets, labels)
-        reference = checked_reference(reference, len(dets))
         layout = placement_layout(dets, reference)
         image = np.ascontiguousarray(np.concatenate([d.image_points for d in dets]))
         ids = np.concatenate([d.ids for d in dets]).astype(np.intp)
