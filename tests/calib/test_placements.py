@@ -244,6 +244,13 @@ def test_the_cli_calibrates_from_several_images(cell: list[Path], tmp_path: Path
     assert [p["name"] for p in summary["placements"]] == [p.name for p in cell]
     assert summary["coverage"]["limit_mm"] == 0.01
     assert Calibration.load(out).placements[4].name == "place4.png"
+    check = subprocess.run(
+        [sys.executable, "-m", "planarcal", "check", str(out)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert check.returncode == 0, check.stderr
+    assert "from 5 placements of the board" in check.stdout
+    assert "placement 4 (place4.png)" in check.stdout
     wrong = subprocess.run(
         [sys.executable, "-m", "planarcal", "calibrate", *map(str, cell[:2]), "--cols", "7",
          "--rows", "6", "--pitch", "20", "-o", str(out), "--origin", "2"],

@@ -65,8 +65,20 @@ def _description(cal: Calibration) -> list[str]:
     board = cal.board
     if board is not None:
         lines.append(f"board ({board.kind}): {board.describe()}")
-        whole = "the whole board" if s.n_points == board.n_points else "a partial view"
-        lines.append(f"points: {s.n_points} of its {board.n_points} {board.point_name}s ({whole})")
+        placements = cal.placements
+        if len(placements) > 1:
+            reference = next(p for p in placements if p.reference)
+            lines.append(
+                f"points: {s.n_points} {board.point_name}s from {len(placements)} placements "
+                f"of the board, fitted together (the plane's frame is placement "
+                f"{reference.index}'s board frame)"
+            )
+            lines += [f"  {p.describe()}" for p in placements]
+        else:
+            whole = "the whole board" if s.n_points == board.n_points else "a partial view"
+            lines.append(
+                f"points: {s.n_points} of its {board.n_points} {board.point_name}s ({whole})"
+            )
     if cal.image_size is not None:
         lines.append(f"image: {cal.image_size[0]} x {cal.image_size[1]} px")
     lines.append(
