@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -169,16 +170,10 @@ def fit_placements(
 ) -> tuple[_core.FittedPlane, PlacementLayout]:
     """The core's joint fit of the plane with lens model `lens` and every pose, started at the
     layout's poses; the plane and the layout with the fitted poses."""
-    plane, poses, cov = _core.FittedPlane.fit_placements(
-        layout.board_mm,
-        image_px,
-        layout.placement.tolist(),
-        layout.reference,
-        [tuple(p) for p in layout.poses],
-        LensKind(lens),
-        (float(size[0]), float(size[1])),
+    return _with_poses(
+        layout,
+        _core.FittedPlane.fit_placements(*_core_layout(layout, image_px), *_core_model(lens, size)),
     )
-    return plane, layout.with_poses(np.asarray(poses), np.asarray(cov))
 
 
 def placements_at(
@@ -191,17 +186,29 @@ def placements_at(
 ) -> tuple[_core.FittedPlane, PlacementLayout]:
     """The core's model of a placements fit at known parameters and poses (a file read back,
     a calibration rescaled to another frame size), with its covariance on these points."""
-    plane, poses, cov = _core.FittedPlane.at_placements(
-        h,
-        radial,
-        layout.board_mm,
-        image_px,
-        layout.placement.tolist(),
-        layout.reference,
-        [tuple(p) for p in layout.poses],
-        LensKind(lens),
-        (float(size[0]), float(size[1])),
+    return _with_poses(
+        layout,
+        _core.FittedPlane.at_placements(
+            h, radial, *_core_layout(layout, image_px), *_core_model(lens, size)
+        ),
     )
+
+
+def _core_layout(layout: PlacementLayout, image_px: F64) -> tuple[Any, ...]:
+    """The core's arguments for the points and poses: board, image, placement, reference,
+    poses."""
+    poses = [(float(a), float(x), float(y)) for a, x, y in layout.poses]
+    return (layout.board_mm, image_px, layout.placement.tolist(), layout.reference, poses)
+
+
+def _core_model(lens: str, size: tuple[int, int]) -> tuple[Any, ...]:
+    return (LensKind(lens), (float(size[0]), float(size[1])))
+
+
+def _with_poses(
+    layout: PlacementLayout, out: tuple[_core.FittedPlane, F64, F64]
+) -> tuple[_core.FittedPlane, PlacementLayout]:
+    plane, poses, cov = out
     return plane, layout.with_poses(np.asarray(poses), np.asarray(cov))
 
 

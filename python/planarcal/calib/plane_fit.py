@@ -78,8 +78,12 @@ def fit_homography_alone(
 def homography_alone_at(h: F64, world: F64, image: F64, size: Any) -> Any:
     """The core's model of a homography alone, at H (its covariance on these points)."""
     w, hgt = _frame_size(image, size)
-    ideal = RadialLens(((w - 1.0) / 2.0, (hgt - 1.0) / 2.0), 0.5 * math.hypot(w, hgt))
-    return _core.FittedPlane.at(h, ideal, world, image, LensKind.NONE, (w, hgt))
+    return _core.FittedPlane.at(h, _ideal_lens(w, hgt), world, image, LensKind.NONE, (w, hgt))
+
+
+def _ideal_lens(w: float, hgt: float) -> RadialLens:
+    """No distortion, centred on a w x hgt image (its unit the half-diagonal)."""
+    return RadialLens(((w - 1.0) / 2.0, (hgt - 1.0) / 2.0), 0.5 * math.hypot(w, hgt))
 
 
 def plane_at(
@@ -101,8 +105,7 @@ def plane_at(
         ideal = image if intrinsics is None else intrinsics.undistort_points(image)
         free = lens if lens in LENS_MODELS else "none"
         if radial is None or free == "none":
-            w, hgt = float(size[0]), float(size[1])
-            radial = RadialLens(((w - 1.0) / 2.0, (hgt - 1.0) / 2.0), 0.5 * math.hypot(w, hgt))
+            radial = _ideal_lens(float(size[0]), float(size[1]))
         return placements_at(h, radial, layout, ideal, free, size)
     return _plane_at(h, world, image, size, lens, radial, intrinsics), None
 
