@@ -7,7 +7,9 @@ import dataclasses
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -319,3 +321,26 @@ def test_copies_laid_out_at_once_are_placements_too(tmp_path: Path) -> None:
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
     assert len(json.loads(run.stdout)["placements"]) == 4
+
+
+@pytest.mark.parametrize(
+    ("edit", "says"),
+    [
+        (lambda p: p.update(reference=9), "reference must be a placement's index"),
+        (lambda p: p.update(point_placement=p["point_placement"][:-1]), "point_placement"),
+        (lambda p: p["items"][1].update(image_size_px=[640, 480]), "image size"),
+        (lambda p: p["items"][1].update(angle_rad=float("nan")), "finite"),
+        (lambda p: p["items"][0].update(points=999), "1 to the board's 42"),
+        (lambda p: p.update(items=p["items"][:1]), "two placements or more"),
+        (lambda p: p.pop("items"), "must be an object with reference, items"),
+    ],
+)
+def test_a_malformed_placements_field_is_named(
+    joint: Calibration, tmp_path: Path, edit: Callable[[dict[str, Any]], object], says: str
+) -> None:
+    data = joint.to_dict()
+    edit(data["placements"])
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(data, allow_nan=True))
+    with pytest.raises(CalibrationFileError, match=says):
+        Calibration.load(path, trust_edits=True)
