@@ -501,10 +501,15 @@ def test_perspective_transform_empty_returns_none(
     dtype: type[np.floating[Any]], shape: tuple[int, ...]
 ) -> None:
     m = H_TRUE if shape[-1] == 2 else np.eye(4)
-    assert pc.perspectiveTransform(np.zeros(shape, dtype), m) is None
+    ours = pc.perspectiveTransform(np.zeros(shape, dtype), m)
     if len(shape) == 3:
-        # OpenCV does the same for its own (N, 1, C) layouts.
-        assert cv2.perspectiveTransform(np.zeros(shape, dtype), m) is None
+        # What the installed OpenCV gives for its own (N, 1, C) layouts: None (4.x) or an
+        # empty array of the input's shape and dtype (5.x).
+        theirs = cv2.perspectiveTransform(np.zeros(shape, dtype), m)
+        if theirs is None:
+            assert ours is None
+        else:
+            assert ours is not None and ours.shape == theirs.shape and ours.dtype == theirs.dtype
 
 
 # ------------------------------------------------------------------------------------------

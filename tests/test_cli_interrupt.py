@@ -71,6 +71,10 @@ def test_ctrl_c_ends_the_demo_in_one_line(tmp_path: Path, delay_s: float) -> Non
     if proc.poll() is not None:  # done before the later interrupts: nothing to test
         pytest.skip("the demo finished before the interrupt")
     code, out, err = _interrupt(proc)
+    if code == 0:  # it finished as the interrupt arrived: a clean end all the same
+        assert "Traceback" not in err and "Exception ignored" not in err, err
+        _assert_whole(report)
+        pytest.skip("the demo finished as the interrupt arrived")
     assert code == INTERRUPTED, err
     assert err.splitlines() == ["planarcal demo: interrupted"], err
     assert out == ""

@@ -458,7 +458,7 @@ EXPECTED_FILES = {
     "board.svg",
     "board.pdf",
     *(f"report/{n}" for n in ("points.csv", "summary.json", "detection.png")),
-    *(f"report/{n}.png" for n in ("deviations", "lens", "uncertainty")),
+    *(f"report/{n}.png" for n in ("deviations", "lens", "uncertainty", "coverage")),
     "failed/detection_failed.png",
     "annotated.png",
     "positions.jsonl",

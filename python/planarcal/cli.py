@@ -17,7 +17,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any, NoReturn
@@ -129,6 +131,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     words = sys.argv[1:] if argv is None else list(argv)
+    try:
+        return _main(words)
+    finally:
+        if argv is None and threading.current_thread() is threading.main_thread():
+            # The program (not a caller's main([...])) is done and its output flushed: a
+            # Ctrl-C now, while Python shuts down, would only print "Exception ignored"
+            # tracebacks over a finished job.
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _main(words: list[str]) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(words)

@@ -15,6 +15,7 @@ arbitrary matrix; a point that maps to infinity raises instead of becoming (0, 0
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -153,8 +154,9 @@ def perspectiveTransform(
 ) -> NDArray[Any] | None:
     """OpenCV's ``perspectiveTransform``: points through a 3 x 3 (or 4 x 4, 3 x 4, 4 x 3) matrix.
 
-    Returns an array of the shape and float dtype of ``src`` (float32 stays float32),
-    ``None`` for an empty input as OpenCV does. A point that maps to infinity raises
+    Returns an array of the shape and float dtype of ``src`` (float32 stays float32); for an
+    empty input what the installed OpenCV returns (``None`` up to OpenCV 4, an empty array of
+    the input's shape from OpenCV 5). A point that maps to infinity raises
     ``PointAtInfinityError`` (OpenCV writes (0, 0) there). ``dst``, if given with the
     output's shape and dtype, is filled in place and returned.
     """
@@ -162,9 +164,26 @@ def perspectiveTransform(
         out = _core.perspective_transform(src, m)
     except (ArgumentError, HomographyError) as e:
         raise _as_cv_error(e) from None
-    if dst is None or out is None:
+    if out is None:
+        return None if _opencv_empty_is_none() else _empty_like(src)
+    if dst is None:
         return out
     return _fill_output(dst, out)
+
+
+@functools.cache
+def _opencv_empty_is_none() -> bool:
+    """Whether the installed OpenCV's perspectiveTransform returns None for no points (4.x)
+    rather than an empty array (5.x)."""
+    import cv2  # noqa: PLC0415 (only here: the drop-ins need OpenCV for nothing else)
+
+    return cv2.perspectiveTransform(np.zeros((0, 1, 2), np.float64), np.eye(3)) is None
+
+
+def _empty_like(src: ArrayLike) -> NDArray[Any]:
+    arr = np.asarray(src)
+    dtype = np.float32 if arr.dtype == np.float32 else np.float64
+    return np.zeros(arr.shape, dtype)
 
 
 def _fill_output(given: NDArray[Any] | None, computed: NDArray[Any]) -> NDArray[Any]:
