@@ -112,7 +112,7 @@ def test_the_whole_work_area_maps_within_the_issues_limits(
     assert err.mean() <= 0.02 and err.max() <= 0.1
     # Honest error bars over the whole area, beyond every placement too.
     ratio = np.sqrt(np.mean(err**2) / np.mean(std**2))
-    assert 0.5 < ratio < 1.5
+    assert 0.67 <= ratio <= 1.5, ratio
     # One placement alone, extrapolated: far worse, which is why placements exist.
     one = Calibration.from_image(cell[0], CIRCLES)
     err_one = np.hypot(*(one.image_to_world(px) - table).T)
