@@ -28,9 +28,10 @@ in the wide window over the pixels near the edges only (the flat rest tells noth
 they run), so a wide window costs little more than a small one. A corner is kept only where
 the model also matches the image in the small window (a wide window fits the X about a corner
 hidden under a glare spot). A lens bends the edges: given the grid lines' bends (``bends``,
-from the grid of refined corners), the model's edges bend with them, so a wide window keeps
-no lean towards their concave side (0.27 kappa r^2 for a straight-edged fit: 0.03 px in a
-strongly barrelled render, 0.006 with the bends). Measured against cornerSubPix and
+from the grid of refined corners: grid_bends), the model's edges bend with them, so a wide
+window keeps no lean towards their concave side (0.27 kappa r^2 for a straight-edged fit:
+0.03 px in a strongly barrelled render, 0.006 with the bends; at k1 = -0.12, 0.005-0.008 px
+per 400 px of radius towards the image centre, 0.0004 with them). Measured against cornerSubPix and
 findChessboardCornersSB in benches/bench_detection.py.
 """
 
@@ -106,6 +107,33 @@ def corner_radius(points: F64, axes: F64, *, dotted: bool = False) -> F64:
         )
         radius = RADIUS_FRACTION * np.minimum(step, diagonal)
     return np.asarray(np.clip(radius, MIN_RADIUS_PX, MAX_RADIUS_PX), dtype=np.float64)
+
+
+def grid_bends(points: F64) -> F64:
+    """The grid lines' bends at each corner of a grid (``points`` (R, C, 2) px, NaN where a
+    corner is missing): (R, C, 2, 2), along each grid line through the corner (u, then v),
+    the second difference of the corners over the squared half-chord, (p+ - 2p + p-) / h^2
+    (1/px; a line's ends take their neighbour's, a line of two corners none), averaged over
+    the corner's 3 x 3 neighbourhood (a lens bends the lines smoothly; each corner's own
+    second difference is noisy, its error over h^2). NaN where no three corners in a row
+    lie near."""
+    rows_g, cols_g = points.shape[:2]
+    out = np.full((rows_g, cols_g, 2, 2), np.nan)
+    for axis, grid in ((0, points), (1, points.transpose(1, 0, 2))):
+        if grid.shape[1] < 3:
+            out[:, :, axis] = 0.0  # a line of two corners: no bend to see
+            continue
+        second = grid[:, 2:] - 2.0 * grid[:, 1:-1] + grid[:, :-2]
+        half = np.maximum(np.linalg.norm(grid[:, 2:] - grid[:, :-2], axis=2) / 2.0, 1e-9)
+        b = second / half[..., None] ** 2
+        b = np.concatenate([b[:, :1], b, b[:, -1:]], axis=1)
+        out[:, :, axis] = b if axis == 0 else b.transpose(1, 0, 2)
+    padded = np.pad(out, ((1, 1), (1, 1), (0, 0), (0, 0)), mode="edge")
+    windows = [padded[i : i + rows_g, j : j + cols_g] for i in range(3) for j in range(3)]
+    known = sum(np.isfinite(w).astype(np.float64) for w in windows)
+    total = sum(np.where(np.isfinite(w), w, 0.0) for w in windows)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.asarray(np.where(known > 0, total / np.maximum(known, 1), np.nan), np.float64)
 
 
 def refine_corners(

@@ -41,6 +41,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from planarcal.calib.charuco import CharucoBoard, dictionary_id
+from planarcal.calib.corner_refine import grid_bends
 from planarcal.calib.detection import BoardDetection
 from planarcal.errors import ArgumentError, BoardMismatchError, BoardNotFoundError
 from planarcal.images import grey_levels
@@ -80,6 +81,15 @@ MAX_HALF_WINDOW = 30
 SYMMETRY_MIN_RADIUS = 8.0
 """The smallest disc (px) the centre of symmetry is found in, however near the markers: on
 renders blurred by 1.5 px, a smaller one loses corners and accuracy."""
+
+SYMMETRY_SECOND_MOMENT = 0.25 * (
+    1.0 - 4.0 * math.exp(-2.0) / math.sqrt(2.0 * math.pi) / math.erf(math.sqrt(2.0))
+)
+"""The mean squared distance along an edge, in squared disc radii, of the centre of
+symmetry's weights (a Gaussian of half the radius, cut at the radius): a lens bends the
+edges (y = a x^2 along each), which turned by 180 degrees bend the other way, so the centre
+of symmetry leans a * this * radius^2 towards their concave side (0.001-0.002 px per 400 px
+of radius, inwards, at k1 = -0.12): _without_bend_lean takes it off."""
 
 
 SMOOTHING_SIGMA = 1.0
@@ -484,6 +494,8 @@ class _CornerFinder:
         self.support_img = [marker_img.reshape(-1, 2)]
         self.found: dict[int, F64] = {}
         self.unrefined: set[int] = set()
+        # The disc (px) each corner's centre of symmetry was found in (not there: none).
+        self.symmetry_radius: dict[int, float] = {}
         self.blurred = np.asarray(
             cv2.GaussianBlur(grey.astype(np.float32), (0, 0), SMOOTHING_SIGMA), np.float32
         )
@@ -584,6 +596,8 @@ class _CornerFinder:
         )
         use = inside & disc_inside
         refined[use] = symmetric[use]
+        for i in np.flatnonzero(use):
+            self.symmetry_radius[ks[i]] = max(float(radius[i]), 2.0)  # symmetry_refine's
         moved = np.linalg.norm(refined - predicted, axis=1)
         corr = self.ink_correlation(ks, refined, hstack, centres, mapped[:, 4])
         # A third of a square away it would be another corner (whose ink, the other
@@ -1103,6 +1117,7 @@ def detect_charuco(image: Any, board: CharucoBoard, **options: Any) -> BoardDete
             "board"
         )
     points = np.array([found[int(k)] for k in corner_ids], np.float64)
+    points = _without_bend_lean(points, corner_ids, board, finder)
     return BoardDetection(
         board=board,
         image_points=points,
@@ -1117,6 +1132,50 @@ def detect_charuco(image: Any, board: CharucoBoard, **options: Any) -> BoardDete
         warnings=tuple(warnings),
         layout=_layout_name(legacy),
     )
+
+
+def _without_bend_lean(
+    points: F64, ids: NDArray[np.intp], board: CharucoBoard, finder: _CornerFinder
+) -> F64:
+    """The corners less the lean a lens's bend of the edges gives their centre of symmetry
+    (SYMMETRY_SECOND_MOMENT): each edge bends as its grid line through the refined corners
+    (corner_refine.grid_bends), so the correction adds no free parameter. A smooth radial
+    field otherwise, which a calibration absorbs unseen (issue 23). Corners without a bend
+    (fewer than three in a row near) or a centre of symmetry are left as they are."""
+    radius = np.array([finder.symmetry_radius.get(int(k), np.nan) for k in ids])
+    refined = ~np.isin(ids, list(finder.unrefined))
+    if len(ids) < 4 or not np.isfinite(radius).any():
+        return points
+    rows, cols = np.divmod(ids, board.cols)
+    grid = np.full((board.rows, board.cols, 2), np.nan)
+    grid[rows[refined], cols[refined]] = points[refined]
+    bends = grid_bends(grid)[rows, cols]  # (N, 2, 2): along u (the board's x), along v
+    # The edges' directions: the board's axes through the corners' homography.
+    world = board.world_points()[ids]
+    found_h, _ = cv2.findHomography(world, points, 0)
+    if found_h is None:
+        return points
+    h = np.asarray(found_h, np.float64)
+    step = 0.5 * board.square
+    axes = np.stack(
+        [_apply(h, world + e) - _apply(h, world - e) for e in ((step, 0.0), (0.0, step))], axis=1
+    )
+    tangents = axes / np.maximum(np.linalg.norm(axes, axis=2, keepdims=True), 1e-12)
+    normals = np.stack([-tangents[..., 1], tangents[..., 0]], axis=2)  # (N, 2 edges, 2)
+    # Each edge y = a x^2 (a = n . b / 2) leans the centre by a <x^2> along its normal.
+    lean_n = 0.5 * np.sum(normals * bends, axis=2) * (SYMMETRY_SECOND_MOMENT * radius**2)[:, None]
+    det = normals[:, 0, 0] * normals[:, 1, 1] - normals[:, 0, 1] * normals[:, 1, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lean = np.column_stack(
+            [
+                (normals[:, 1, 1] * lean_n[:, 0] - normals[:, 0, 1] * lean_n[:, 1]) / det,
+                (normals[:, 0, 0] * lean_n[:, 1] - normals[:, 1, 0] * lean_n[:, 0]) / det,
+            ]
+        )
+    ok = np.isfinite(lean).all(axis=1) & (np.abs(det) > 0.2)
+    out = np.array(points, np.float64)
+    out[ok] -= lean[ok]
+    return out
 
 
 def _homography_rms(world: F64, points: F64) -> float:

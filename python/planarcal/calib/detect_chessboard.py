@@ -48,7 +48,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calib.chessboard import ChessboardBoard
-from planarcal.calib.corner_refine import RefinedCorners, corner_radius, refine_corners
+from planarcal.calib.corner_refine import (
+    RefinedCorners,
+    corner_radius,
+    grid_bends,
+    refine_corners,
+)
 from planarcal.calib.detection import BoardDetection, Orientation
 from planarcal.errors import (
     ArgumentError,
@@ -81,6 +86,12 @@ SB_EXHAUSTIVE_S_PER_PIXEL = 0.8e-6
 per pixel where they find no board (on two cores); each finder's rate on the image at hand,
 once measured on a smaller copy, replaces it where it is higher (noise and clutter slow them
 several times)."""
+BEND_LEAN_PX = 0.001
+"""The corners are refined again with bent edges (_bent_edges) where a straight-edged fit
+would lean by more than this somewhere. The lean grows with the distance from the lens's
+centre, a smooth radial field that the calibration's homography and lens absorb unseen
+(the residuals stay white, the error bars miss it): 0.01 px left 0.005-0.008 px per 400 px
+of radius inwards at k1 = -0.12 (tests/calib/test_corner_bias.py)."""
 
 AMBIGUOUS_CHESS_RULE = (
     "no origin marker, and the board looks the same turned: corner 0 is the board corner "
@@ -414,29 +425,6 @@ def _finish(
     return _detection(grey, grid, points, refined, reading, board)
 
 
-def _grid_bends(points: F64) -> F64:
-    """(R, C, 2, 2): along each grid line through each corner (u, then v), the second
-    difference of the corners over the squared half-chord (1/px; a line's ends take their
-    neighbour's, a line of two corners none)."""
-    rows_g, cols_g = points.shape[:2]
-    out = np.zeros((rows_g, cols_g, 2, 2))
-    for axis, grid in ((0, points), (1, points.transpose(1, 0, 2))):
-        if grid.shape[1] < 3:
-            continue
-        second = grid[:, 2:] - 2.0 * grid[:, 1:-1] + grid[:, :-2]
-        half = np.maximum(np.linalg.norm(grid[:, 2:] - grid[:, :-2], axis=2) / 2.0, 1e-9)
-        b = second / half[..., None] ** 2
-        b = np.concatenate([b[:, :1], b, b[:, -1:]], axis=1)
-        out[:, :, axis] = b if axis == 0 else b.transpose(1, 0, 2)
-    # A lens bends the lines smoothly; each corner's own second difference is noisy (its
-    # error over h^2): averaged over the corner's 3 x 3 neighbourhood.
-    padded = np.pad(out, ((1, 1), (1, 1), (0, 0), (0, 0)), mode="edge")
-    return np.asarray(
-        sum(padded[i : i + rows_g, j : j + cols_g] for i in range(3) for j in range(3)) / 9.0,
-        dtype=np.float64,
-    )
-
-
 def _bent_edges(
     grey: NDArray[np.uint8] | NDArray[np.float32],
     flat: F64,
@@ -447,9 +435,9 @@ def _bent_edges(
 ) -> tuple[RefinedCorners, F64]:
     """Refined again with the model's edges bent as the grid lines through the refined
     corners bend (a lens's distortion), where the bend inside a corner's window would lean
-    a straight-edged fit by more than about 0.01 px (0.27 kappa r^2 towards the concave
-    side); the bends come from the grid, so the fit gains no free parameter."""
-    bends = _grid_bends(points).reshape(-1, 2, 2)
+    a straight-edged fit by more than BEND_LEAN_PX somewhere (0.27 kappa r^2 towards the
+    concave side); the bends come from the grid, so the fit gains no free parameter."""
+    bends = grid_bends(points).reshape(-1, 2, 2)
     if not np.isfinite(bends).all():
         return refined, points
     radius = corner_radius(flat, axes.reshape(-1, 2, 2), dotted=dotted)
@@ -458,7 +446,7 @@ def _bent_edges(
     direction = ax / np.maximum(np.linalg.norm(ax, axis=2, keepdims=True), 1e-12)
     across = np.abs(direction[..., 0] * bends[..., 1] - direction[..., 1] * bends[..., 0])
     kappa = 0.5 * np.max(across, axis=1)
-    if not (0.27 * kappa * radius**2 > 0.01).any():
+    if not (0.27 * kappa * radius**2 > BEND_LEAN_PX).any():
         return refined, points
     again = refine_corners(grey, flat, axes.reshape(-1, 2, 2), dotted=dotted, bends=bends)
     return again, again.points.reshape(points.shape)
