@@ -159,12 +159,7 @@ def run(seed: int = 0, report: str | os.PathLike[str] | None = None, board: str 
     say("")
     say(f"Rendered, calibrated, located and registered in {time.perf_counter() - start:.1f} s.")
     if report is None:
-        # The figures need the report extra: say so here rather than after the next run.
-        try:
-            require_matplotlib()
-            extra = ""
-        except MissingDependencyError:
-            extra = " (after: pip install 'planarcal[report]')"
+        extra = _report_extra()
         again = "" if board == "circles" else f" --board {board}"
         say(
             f"To see the figures and the images: planarcal demo{again} --report "
@@ -214,6 +209,15 @@ def _object_rows(
             f"{o.world_std_mm:>9.3f}{_angle(o.angle_deg):>8}{_angle(true_angles[j]):>7}"
         )
     return errors, matched
+
+
+def _report_extra() -> str:
+    """What the figures need, said now rather than after the next run: the report extra."""
+    try:
+        require_matplotlib()
+    except MissingDependencyError:
+        return " (after: pip install 'planarcal[report]')"
+    return ""
 
 
 def _next_steps(board: Board) -> list[str]:
@@ -420,11 +424,7 @@ def run_placements(
     say(f"Rendered, calibrated and located in {time.perf_counter() - start:.1f} s.")
     again = "" if board == "circles" else f" --board {board}"
     if report is None:
-        try:
-            require_matplotlib()
-            extra = ""
-        except MissingDependencyError:
-            extra = " (after: pip install 'planarcal[report]')"
+        extra = _report_extra()
         say(
             f"To see the figures and the images: planarcal demo --placements {count}{again} "
             f"--report {REPORT_EXAMPLE}{extra}"
