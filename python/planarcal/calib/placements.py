@@ -231,11 +231,10 @@ def check_placements(
     its pixels mapped to the plane by them and its board points fitted there by a rotation and
     translation. A flat, correctly detected placement lands within the others' predicted
     error (their fit's 1-sigma at its pixels, with their residuals' noise in its pixels: a
-    bad placement among them inflates both, so it is the held-out one that stands out);
-    one more than
-    OUTLIER_RATIO times off, and by more than OUTLIER_FLOOR_PX, is named with what its misfit
-    looks like (calib.placements.misfit). Two placements cannot outvote each other: their
-    joint residuals are compared instead."""
+    bad placement among them inflates both, so it is the held-out one that stands out); one
+    more than OUTLIER_RATIO times off, and by more than OUTLIER_FLOOR_PX, is named with what
+    its misfit looks like (``misfit``). Two placements cannot outvote each other and are not
+    judged. ``ideal_px``: the pixels the plane maps (undistorted, with intrinsics)."""
     count = layout.count
     if count < 3:
         return
