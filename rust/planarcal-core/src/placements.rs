@@ -119,9 +119,14 @@ pub struct PlacementsFit {
 
 /// The sums over one placement's points at theta and its pose.
 struct PlacementSums {
+    /// Its points' share of theta's block, J_theta^T J_theta.
+    a: MatP,
     b: Blocks,
     d: Matrix3<f64>,
     g: Vector3<f64>,
+    /// Its points' sum of squared residuals, px^2, and how many they are.
+    cost: f64,
+    n: usize,
 }
 
 /// The whole problem's sums: theta's block, each placement's, the cost.
@@ -150,9 +155,12 @@ impl Problem<'_> {
             g: VecP::zeros(),
             placements: (0..p.count)
                 .map(|_| PlacementSums {
+                    a: MatP::zeros(),
                     b: Blocks::zeros(),
                     d: Matrix3::zeros(),
                     g: Vector3::zeros(),
+                    cost: 0.0,
+                    n: 0,
                 })
                 .collect(),
             cost: 0.0,
@@ -163,12 +171,16 @@ impl Problem<'_> {
             self.free.mask(&mut pred.d_theta);
             let r = Vector2::new(pred.image[0] - d[0], pred.image[1] - d[1]);
             let jt = &pred.d_theta;
-            s.a += jt.transpose() * jt;
+            let jtj = jt.transpose() * jt;
+            s.a += jtj;
             s.g += jt.transpose() * r;
             s.cost += r.norm_squared();
+            let ps = &mut s.placements[k];
+            ps.a += jtj;
+            ps.cost += r.norm_squared();
+            ps.n += 1;
             if k != p.reference {
                 let jp = pred.d_world * pose.derivative(*b);
-                let ps = &mut s.placements[k];
                 ps.b += jt.transpose() * jp;
                 ps.d += jp.transpose() * jp;
                 ps.g += jp.transpose() * r;
@@ -375,6 +387,46 @@ pub fn placements_fit_at(
     finish(&problem, params, poses, 0)
 }
 
+/// (J^T J)^-1 scaled so that sigma2 times it is theta's covariance when each placement has
+/// its own noise (its residuals' variance): placements are separate images, and one seen
+/// worse (blur, light, a board less flat) weighs on the mapping more than the pooled noise
+/// says, most of all the reference, which fixes the frame. The sandwich
+///     S^-1 (sum_k sigma_k^2 S_k) S^-1,  S_k = A_k - B_k D_k^-1 B_k^T,  S = sum_k S_k,
+/// each placement's share of the reduced normal matrix weighted by its own variance (with
+/// equal variances it is sigma^2 S^-1). sigma_k^2: its cost over its degrees of freedom, its
+/// pose's 3 and its share of theta's parameters taken out.
+fn placement_noise_covariance(
+    sums: &Sums,
+    placed: &Placed<'_>,
+    free: LensParams,
+    s_inv: &MatP,
+    sigma2: f64,
+) -> MatP {
+    if !(sigma2 > 0.0) {
+        return *s_inv;
+    }
+    let n = placed.board.len() as f64;
+    let mut meat = MatP::zeros();
+    for (k, ps) in sums.placements.iter().enumerate() {
+        let mut share = ps.a;
+        if k != placed.reference {
+            if let Some(inv) = ps.d.try_inverse() {
+                share -= ps.b * inv * ps.b.transpose();
+            }
+        }
+        let pose = if k == placed.reference { 0.0 } else { 3.0 };
+        let dof = 2.0 * ps.n as f64 - pose - free.count() as f64 * ps.n as f64 / n;
+        let variance = if dof >= 1.0 { ps.cost / dof } else { sigma2 };
+        meat += share * variance;
+    }
+    let cov = s_inv * meat * s_inv;
+    if cov.iter().all(|v| v.is_finite()) {
+        cov / sigma2
+    } else {
+        *s_inv
+    }
+}
+
 fn finish(
     problem: &Problem<'_>,
     params: Params,
@@ -393,7 +445,7 @@ fn finish(
             return Err(undetermined());
         }
     }
-    let jtj_inv = inverse_normal(&normal.jtj, free).ok_or_else(undetermined)?;
+    let s_inv = inverse_normal(&normal.jtj, free).ok_or_else(undetermined)?;
     let n = placed.board.len();
     let dof = 2 * n - free.count() - 3 * (placed.count - 1);
     let sigma2 = if dof == 0 {
@@ -401,6 +453,7 @@ fn finish(
     } else {
         normal.cost / dof as f64
     };
+    let jtj_inv = placement_noise_covariance(&sums, placed, free, &s_inv, sigma2);
     let pose_covariance = sums
         .placements
         .iter()
@@ -410,7 +463,7 @@ fn finish(
                 return Matrix3::zeros();
             }
             let inv = ps.d.try_inverse().unwrap_or_else(Matrix3::zeros);
-            (inv + inv * ps.b.transpose() * jtj_inv * ps.b * inv) * sigma2
+            (inv + inv * ps.b.transpose() * s_inv * ps.b * inv) * sigma2
         })
         .collect();
     let plane_points = placed.plane_points(poses);
@@ -484,6 +537,11 @@ mod tests {
     }
 
     fn scene(noise: f64, seed: u64) -> Scene {
+        scene_with(&[noise; 4], seed)
+    }
+
+    /// Each placement's points with its own pixel noise (1-sigma per coordinate).
+    fn scene_with(noise: &[f64; 4], seed: u64) -> Scene {
         let model = truth_model();
         let mut state = seed
             .wrapping_mul(2862933555777941757)
@@ -505,7 +563,7 @@ mod tests {
             for p in board() {
                 let d = model.world_to_image(pose.apply(p)).unwrap();
                 b.push(p);
-                im.push([d[0] + noise * gauss(), d[1] + noise * gauss()]);
+                im.push([d[0] + noise[k] * gauss(), d[1] + noise[k] * gauss()]);
                 pl.push(k);
             }
         }
@@ -589,6 +647,33 @@ mod tests {
         let runs = 60;
         for seed in 0..runs {
             let s = scene(0.1, 100 + seed);
+            let fit = fit_placements(
+                placed(&s),
+                &rough_start(),
+                LensParams::K1K2Centre,
+                [1280.0, 960.0],
+            )
+            .unwrap();
+            let inv = crate::uncertainty::InversePlane::new(&fit.fit.model).unwrap();
+            let got = inv.map(truth_px).unwrap();
+            err2 += (got[0] - far[0]).powi(2) + (got[1] - far[1]).powi(2);
+            pred2 += world_covariance(&fit.fit, got, 0.0).unwrap().trace();
+        }
+        let ratio = (err2 / pred2).sqrt();
+        assert!((0.75..1.33).contains(&ratio), "actual / predicted {ratio}");
+    }
+
+    #[test]
+    fn a_reference_seen_worse_than_the_others_widens_the_error_bars_honestly() {
+        // The reference ten times as noisy as the others (a blurred image): the pooled noise
+        // would understate the error where it lies by about half; each placement's own
+        // noise, weighted into the covariance, does not.
+        let far = [80.0, 60.0];
+        let truth_px = truth_model().world_to_image(far).unwrap();
+        let (mut err2, mut pred2) = (0.0, 0.0);
+        let runs = 60;
+        for seed in 0..runs {
+            let s = scene_with(&[0.3, 0.03, 0.03, 0.03], 300 + seed);
             let fit = fit_placements(
                 placed(&s),
                 &rough_start(),
