@@ -368,7 +368,6 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
     placed = placements_from_dict(
         data.get("placements"), board, points.get("ids"), len(world), image_size, source
     )
-    layout = None
     if placed is None:
         fit, intrinsics, world_scale = _fit_from_dict(data, h, world, image, image_size, source)
         point_ids = _check_on_board(board, world, world_scale, source)
