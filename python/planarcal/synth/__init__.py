@@ -63,6 +63,7 @@ from planarcal.synth.corpus import (
     board_variants,
 )
 from planarcal.synth.effects import jpeg
+from planarcal.synth.live_video import LiveVideo, write_live_video
 from planarcal.synth.marks import MARK_KINDS, MarkKind, printed_marks
 from planarcal.synth.objects import OBJECT_KINDS, ObjectKind, SceneObject, Silhouette
 from planarcal.synth.occluders import hand
@@ -96,6 +97,7 @@ __all__ = [
     "CameraModel",
     "Cell",
     "CellPlacement",
+    "LiveVideo",
     "MarkKind",
     "ObjectKind",
     "PaperScene",
@@ -117,4 +119,5 @@ __all__ = [
     "render_cell",
     "render_copies",
     "render_scene",
+    "write_live_video",
 ]
