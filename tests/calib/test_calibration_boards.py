@@ -97,7 +97,7 @@ def test_every_board_calibrates_whole_and_in_part_with_its_point_ids(
     # The file keeps the board's type and the ids, loads, and saves again byte for byte.
     path = cal.save(tmp_path / "cal.json")
     data = json.loads(path.read_text())
-    assert data["version"] == FILE_VERSION == 6
+    assert data["version"] == FILE_VERSION == 7
     assert data["board"]["type"] == board.kind
     assert data["points"]["ids"] == [int(i) for i in ids[shuffled]]
     back = Calibration.load(path)
@@ -245,6 +245,7 @@ def test_an_edited_typed_file_is_refused_naming_what(
 def _as_version_4(data: dict[str, Any]) -> dict[str, Any]:
     old = copy.deepcopy(data)
     old["version"] = 4
+    old.pop("object_settings")  # (version 7's)
     old["board"].pop("type")
     old["points"].pop("ids")
     for key in SUMMARY_SINCE_5:
@@ -270,6 +271,7 @@ def test_a_version_4_file_of_a_circle_grid_still_loads_and_saves_as_version_5() 
 def test_a_version_4_file_cannot_hold_another_board_type(chess_file: dict[str, Any]) -> None:
     old = copy.deepcopy(chess_file)
     old["version"] = 4
+    old.pop("object_settings")  # (version 7's)
     with pytest.raises(CalibrationFileError, match="version 4 file's board is a circle grid"):
         Calibration.from_dict(_redigest(old))
 

@@ -192,8 +192,8 @@ def test_files_of_versions_two_and_three_still_load(tmp_path: Path) -> None:
     cal = Calibration.load(V3_FILE)
     assert cal.robot_frame is not None and cal.robot_frame.plane_std_mm is not None
     assert cal.created == v3["created"]
-    again = Calibration.load(cal.save(tmp_path / "v6.json"))
-    assert json.loads((tmp_path / "v6.json").read_text())["version"] == FILE_VERSION == 6
+    again = Calibration.load(cal.save(tmp_path / "v7.json"))
+    assert json.loads((tmp_path / "v7.json").read_text())["version"] == FILE_VERSION == 7
     np.testing.assert_array_equal(
         again.image_to_world(PROBE_PX, frame="robot"), cal.image_to_world(PROBE_PX, frame="robot")
     )

@@ -147,7 +147,7 @@ def test_files_keep_the_lens_and_read_version_one(scenes: Scenes, tmp_path: Path
     old["version"] = 1
     for key in ("lens_model", "lens", "lens_note", "lens_candidates", "intrinsics", "world_scale"):
         del old[key]
-    del old["digest"]  # version 4's
+    del old["digest"], old["object_settings"]  # versions 4's and 7's
     v1 = Calibration.from_dict(json.loads(json.dumps(old)))
     assert v1.lens_model == "none" and np.array_equal(v1.H, plain.H)
 

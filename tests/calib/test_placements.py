@@ -124,7 +124,7 @@ def test_the_file_records_the_placements_and_loads_to_the_same_bytes(
 ) -> None:
     path = joint.save(tmp_path / "cal.json")
     data = json.loads(path.read_text())
-    assert data["version"] == 6
+    assert data["version"] == 7
     stored = data["placements"]
     assert stored["reference"] == 0 and len(stored["items"]) == 5
     assert stored["items"][1]["name"] == "place1.png"

@@ -93,7 +93,7 @@ def test_a_calibration_without_a_recorded_size_accepts_any(cal_640: Calibration)
     old["version"] = 1
     for key in ("lens_model", "lens", "lens_note", "lens_candidates", "intrinsics", "digest"):
         del old[key]
-    del old["world_scale"], old["image_size_px"]
+    del old["world_scale"], old["image_size_px"], old["object_settings"]
     v1 = Calibration.from_dict(json.loads(json.dumps(old)))
     assert v1.image_size is None
     px = np.array([[300.0, 200.0]])

@@ -73,7 +73,7 @@ def test_a_file_of_the_previous_version_loads_without_a_registration(cal: Calibr
     assert json.loads(OLD_FILE.read_text())["version"] == 2
     assert cal.robot_frame is None
     assert cal.default_frame == "board"
-    assert cal.to_dict()["version"] == FILE_VERSION == 6
+    assert cal.to_dict()["version"] == FILE_VERSION == 7
     assert cal.to_dict()["robot_frame"] is None
     px = cal.image_points[:5]
     np.testing.assert_allclose(cal.image_to_world(px), cal.world_points[:5], atol=0.05)

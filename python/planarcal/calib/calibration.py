@@ -27,6 +27,9 @@ Beyond the paper:
   board to a robot's base frame (a :class:`~planarcal.robot.RobotFrame`, from touch points or
   N-point pairs); ``image_to_world(px, frame="robot")`` then maps pixels straight to robot
   mm, the registration's own error carried into the 1-sigma. It is saved with the file.
+* **How objects are detected here**: ``object_settings`` (calib.object_settings: area limits,
+  a region of interest, the blur), set by ``with_object_settings`` and saved with the file;
+  ``locate_objects``, the ``Tracker`` and the commands use them unless told otherwise.
 
 This module is the Calibration class; its parts live beside it: ``lens_model`` (the lens it
 fitted), ``lens_choice`` (which lens model, and the candidates tried), ``plane_fit`` (the
@@ -66,6 +69,7 @@ from planarcal.calib.lens_choice import (
     fit_with_lens,
 )
 from planarcal.calib.lens_model import LENS_MODELS, LensModel
+from planarcal.calib.object_settings import ObjectSettings
 from planarcal.calib.placement_set import (
     calibration_placements,
     checked_reference,
@@ -255,6 +259,7 @@ class Calibration:
         ids: NDArray[np.intp] | None = None,
         placement_names: tuple[str, ...] = (),
         placement_partial: tuple[bool, ...] = (),
+        object_settings: ObjectSettings | None = None,
     ) -> None:
         self._world = world
         self._image = image
@@ -286,6 +291,9 @@ class Calibration:
         """The registration of the board to the robot's base frame, or None (see register)."""
         self._placement_names = placement_names
         self._placement_partial = placement_partial
+        self.object_settings = ObjectSettings() if object_settings is None else object_settings
+        """How objects are detected in this camera's images (area limits, roi, blur; each
+        None: detect_objects' default): see with_object_settings."""
         self.created = calibration_file.now_stamp() if created is None else created
         """When this calibration was made (ISO 8601, UTC): kept by save and load, so that a
         re-save of an unchanged calibration is the same file."""
@@ -623,6 +631,7 @@ class Calibration:
             ids=self.point_ids,
             placement_names=self._placement_names,
             placement_partial=self._placement_partial,
+            object_settings=self.object_settings,  # in pixels, which a scale leaves as they are
         )
         return cal
 
@@ -685,6 +694,7 @@ class Calibration:
             ids=self.point_ids,
             placement_names=self._placement_names,
             placement_partial=self._placement_partial,
+            object_settings=self.object_settings.scaled(s, size),
         )
         return cal
 
@@ -717,6 +727,25 @@ class Calibration:
         cal.__dict__.update(self.__dict__)
         cal.robot_frame = robot_frame
         cal.created = calibration_file.now_stamp()  # another calibration than this one
+        return cal
+
+    # -- how objects are detected -----------------------------------------------------------
+
+    def with_object_settings(self, settings: ObjectSettings) -> Calibration:
+        """This calibration with ``settings`` as its object-detection settings (area limits,
+        region of interest, blur: calib.object_settings), which ``save`` records and
+        ``locate_objects``, the ``Tracker`` and the commands use by default; a new
+        Calibration, this one unchanged. ``created`` is kept: the mapping is this one's.
+        ArgumentError for settings that are not an ObjectSettings, or that this
+        calibration's images cannot take (an roi beyond them, a blur wider than them)."""
+        if not isinstance(settings, ObjectSettings):
+            raise ArgumentError(
+                f"settings must be an ObjectSettings, got {type(settings).__name__}"
+            )
+        settings.check_image_size(self.image_size)
+        cal = Calibration.__new__(Calibration)
+        cal.__dict__.update(self.__dict__)
+        cal.object_settings = settings
         return cal
 
     def register(
@@ -1229,6 +1258,7 @@ class Calibration:
                 ids=c.point_ids,
                 placement_names=c.placement_names,
                 placement_partial=c.placement_partial,
+                object_settings=c.object_settings,
             )
             errors_px = cal.reprojection_errors_px
             calibration_file.check_residuals(errors_px, c.residuals, source)

@@ -28,7 +28,13 @@ number of points, whether it is a partial view and its fitted in-plane pose, and
 ``point_placement``, the placement of each point (null for a calibration from one view). Its
 world points are in the plane's frame: each must be its board point (``points.ids``) carried
 by its placement's pose, and the homography, lens and poses must reproduce the residuals the
-file records; the covariance (the error bars) is rebuilt with the poses free, as fitted."""
+file records; the covariance (the error bars) is rebuilt with the poses free, as fitted.
+
+Version 7 adds ``object_settings``: how objects are detected in this camera's images
+(ObjectSettings.to_dict: ``min_area_px``, ``max_area_px``, ``roi`` as [x, y, width, height]
+and ``blur_sigma``, each null for detect_objects' default), covered by the digest like every
+field, checked for its types and ranges and against the image size on load. Files of
+versions 1 to 6 load with the defaults (every setting null)."""
 
 from __future__ import annotations
 
@@ -56,6 +62,7 @@ from planarcal.calib.boards import BOARD_TYPES, Board, board_from_dict
 from planarcal.calib.json_number import is_json_int, is_json_real, json_number
 from planarcal.calib.lens_candidate import LensCandidate
 from planarcal.calib.lens_model import LENS_MODELS
+from planarcal.calib.object_settings import ObjectSettings
 from planarcal.calib.placement_file import placements_from_dict, placements_to_dict
 from planarcal.calib.placements import PlacementLayout
 from planarcal.calib.plane_fit import PlaneFit, plane_at
@@ -82,14 +89,16 @@ if TYPE_CHECKING:
 F64 = NDArray[np.float64]
 
 FILE_FORMAT = CALIBRATION_FORMAT
-FILE_VERSION = 6
-READS_VERSIONS = (1, 2, 3, 4, 5, 6)
+FILE_VERSION = 7
+READS_VERSIONS = (1, 2, 3, 4, 5, 6, 7)
 ROBOT_FRAME_SINCE = 3
 DIGEST_SINCE = 4
 BOARD_TYPES_SINCE = 5
 """The first version whose board has a type (and points their ids)."""
 PLACEMENTS_SINCE = 6
 """The first version that records placements."""
+OBJECT_SETTINGS_SINCE = 7
+"""The first version that records the object-detection settings."""
 
 SUMMARY_SINCE_5 = ("covered_share", "covered_std_mm", "image_std_mm")
 """The summary's fields a version 5 file adds (the points' coverage of the image)."""
@@ -136,9 +145,10 @@ FIELDS = (
     "summary",
     "robot_frame",
     "placements",
+    "object_settings",
     "digest",
 )
-"""Every field of a version 6 file, in the order written; older versions wrote some of
+"""Every field of a version 7 file, in the order written; older versions wrote some of
 them."""
 ALWAYS = ("solver", "refine", "homography_world_mm_to_image_px", "points")
 """The fields every version has."""
@@ -216,6 +226,7 @@ class FileContents:
     point_ids: NDArray[np.intp] | None = None
     placement_names: tuple[str, ...] = ()
     placement_partial: tuple[bool, ...] = ()
+    object_settings: ObjectSettings = dataclasses.field(default_factory=ObjectSettings)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,6 +281,8 @@ def calibration_to_dict(
     content["robot_frame"] = None if cal.robot_frame is None else cal.robot_frame.to_dict()
     if version >= PLACEMENTS_SINCE:
         content["placements"] = placements_to_dict(cal)
+    if version >= OBJECT_SETTINGS_SINCE:
+        content["object_settings"] = cal.object_settings.to_dict()
     # A board that does not describe the points, or points beyond the image (the API takes
     # both: Calibration(world, image, board=..., image_size=...)), would be refused on load
     # as edited.
@@ -300,8 +313,15 @@ def board_to_dict(board: Board, typed: bool = True) -> dict[str, Any]:
 
 
 def now_stamp() -> str:
-    """The time now as a file's ``created`` writes it (ISO 8601, UTC, whole seconds)."""
-    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    """The time now as a file's ``created`` writes it (ISO 8601, UTC, whole seconds); the
+    time SOURCE_DATE_EPOCH gives (seconds since 1970, the reproducible-builds convention)
+    when it is set, so that two runs on the same images write the same file to the bit."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    if epoch.isdigit() and len(epoch) <= 12:
+        at = datetime.datetime.fromtimestamp(int(epoch), datetime.timezone.utc)
+    else:
+        at = datetime.datetime.now(datetime.timezone.utc)
+    return at.isoformat(timespec="seconds")
 
 
 def field_digests(data: dict[str, Any]) -> dict[str, str]:
@@ -384,6 +404,7 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
     robot_frame = _robot_frame(
         data.get("robot_frame"), source, None if board is None else board.point_name
     )
+    settings = _object_settings(data.get("object_settings"), image_size, source)
     return FileContents(
         world,
         image,
@@ -401,6 +422,7 @@ def contents_from_dict(data: Any, source: str) -> FileContents:
         point_ids,
         () if placed is None else placed.names,
         () if placed is None else placed.partial,
+        settings,
     )
 
 
@@ -611,6 +633,7 @@ def _check_fields(data: dict[str, Any], version: int, source: str) -> None:
         "robot_frame": ROBOT_FRAME_SINCE,
         "digest": DIGEST_SINCE,
         "placements": PLACEMENTS_SINCE,
+        "object_settings": OBJECT_SETTINGS_SINCE,
     }
     for key in FIELDS if version >= DIGEST_SINCE else ALWAYS:
         if key != "summary" and version >= since.get(key, 0):  # summary: _stored_residuals
@@ -809,6 +832,22 @@ def _json_type_is(value: Any, want: str) -> bool:
     if want == "bool or null":
         return value is None or isinstance(value, bool)
     return isinstance(value, str)
+
+
+def _object_settings(
+    settings_data: Any, size: tuple[int, int] | None, source: str
+) -> ObjectSettings:
+    """The object-detection settings (the defaults for a file before version 7, which
+    _check_fields makes sure has none): of their JSON types and ranges, and usable on images
+    of the file's size (an roi within them)."""
+    if settings_data is None:
+        return ObjectSettings()
+    try:
+        settings = ObjectSettings.from_dict(settings_data)
+        settings.check_image_size(size)
+    except ArgumentError as e:
+        raise CalibrationFileError(f"{source}: object_settings: {e} (edited or corrupt)") from None
+    return settings
 
 
 def _robot_frame(robot_data: Any, source: str, point_name: str | None) -> RobotFrame | None:

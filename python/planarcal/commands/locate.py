@@ -1,13 +1,17 @@
 """`planarcal locate`: the objects in one image, each one's position on the plane in mm (in
-the board's frame or, once registered, the robot's), its 1-sigma and its angle."""
+the board's frame or, once registered, the robot's), its 1-sigma and its angle; and the
+detection options it shares with `planarcal run` (--min-area, --max-area, --roi, --blur), which
+override the calibration file's object settings for the run."""
 
 from __future__ import annotations
 
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 from planarcal.calib.calibration import Calibration
+from planarcal.calib.object_settings import ObjectSettings, detect_options_with
 from planarcal.commands import (
     finite,
     frame_argument,
@@ -16,8 +20,9 @@ from planarcal.commands import (
     locating_with,
     non_negative,
     not_a_folder,
+    positive,
 )
-from planarcal.errors import FrameSizeError
+from planarcal.errors import ArgumentError, FrameSizeError
 from planarcal.files import atomic_write
 from planarcal.images import load_image
 from planarcal.live.objects import DetectedObject, locate_objects
@@ -30,9 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.description = DESCRIPTION
     p.add_argument("image", type=Path, help="image of the objects")
     p.add_argument("--calibration", required=True, type=Path, help="file from 'calibrate'")
-    p.add_argument(
-        "--min-area", type=non_negative, default=None, help="smallest object outline area in px^2"
-    )
+    add_detection_arguments(p)
     p.add_argument(
         "--height",
         type=finite,
@@ -47,6 +50,95 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     frame_argument(p)
 
 
+# Each detection option's dest and the object setting it overrides.
+DETECTION_OPTIONS = {
+    "min_area": "min_area_px",
+    "max_area": "max_area_px",
+    "roi": "roi",
+    "blur": "blur_sigma",
+}
+
+
+def add_detection_arguments(p: argparse.ArgumentParser) -> None:
+    """The detection options of `locate` and `run`: each, given, overrides the calibration
+    file's object setting of its name for this run (the others are the file's)."""
+    g = p.add_argument_group(
+        "detection (each overrides the calibration file's object setting for this run)"
+    )
+    g.add_argument(
+        "--min-area",
+        type=non_negative,
+        default=None,
+        metavar="PX",
+        help="smallest object outline area in px^2",
+    )
+    g.add_argument(
+        "--max-area",
+        type=positive,
+        default=None,
+        metavar="PX",
+        help="largest object outline area in px^2",
+    )
+    g.add_argument(
+        "--roi",
+        type=roi_argument,
+        default=None,
+        metavar="X,Y,W,H",
+        help="keep only the objects whose centre lies in this rectangle of the image (px: "
+        "left, top, width, height)",
+    )
+    g.add_argument(
+        "--blur",
+        type=non_negative,
+        default=None,
+        metavar="SIGMA",
+        help="Gaussian blur before the edges are traced, px (default 1.5)",
+    )
+
+
+def roi_argument(text: str) -> tuple[int, int, int, int]:
+    """--roi's X,Y,W,H: four whole numbers of px, as ObjectSettings takes them."""
+    parts = [t.strip() for t in text.split(",")]
+    try:
+        if len(parts) != 4:
+            raise ValueError
+        values = [int(t) for t in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected X,Y,W,H, four whole numbers of px (left, top, width, height), got {text!r}"
+        ) from None
+    try:
+        roi = ObjectSettings(roi=(values[0], values[1], values[2], values[3])).roi
+    except ArgumentError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    assert roi is not None
+    return roi
+
+
+def detection_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """detect_objects' options the command line gives (those typed only)."""
+    return {
+        field: getattr(args, dest)
+        for dest, field in DETECTION_OPTIONS.items()
+        if getattr(args, dest, None) is not None
+    }
+
+
+def checked_detection(args: argparse.Namespace, cal: Calibration) -> dict[str, Any]:
+    """The command line's detection options, checked with the calibration's settings they
+    override (exit status 2 for a minimum area above the maximum, one from each, or an roi
+    beyond the calibration's image)."""
+    overrides = detection_overrides(args)
+    try:
+        detect_options_with(cal.object_settings, overrides, cal.image_size)
+    except ArgumentError as e:
+        held = cal.object_settings
+        said = "" if held.is_default else f" (the calibration's object settings: {held.describe()})"
+        # The CLI reports argparse's error as a malformed command line: exit status 2.
+        raise argparse.ArgumentError(None, f"{e}{said}") from e
+    return overrides
+
+
 def main(args: argparse.Namespace) -> int:
     if args.annotate is not None and args.annotate.suffix.lower() != ".png":
         raise argparse.ArgumentError(
@@ -58,11 +150,10 @@ def main(args: argparse.Namespace) -> int:
     image_path = not_a_folder(args.image, folder)
     cal = Calibration.load(args.calibration)
     frame = locating_with(args, cal)
+    detect = checked_detection(args, cal)
     image = load_image(image_path)
     try:
-        objects = locate_objects(
-            image, cal, height_mm=args.height, frame=frame, min_area_px=args.min_area
-        )
+        objects = locate_objects(image, cal, height_mm=args.height, frame=frame, **detect)
     except FrameSizeError as e:
         raise frame_size_in_words(e, "image") from e
     where = frame_words(frame)

@@ -16,6 +16,7 @@ from planarcal.commands import (
     locating_with,
     non_negative,
 )
+from planarcal.commands.locate import add_detection_arguments, checked_detection
 from planarcal.errors import FrameSizeError, OutputError
 from planarcal.live import run
 
@@ -52,9 +53,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="print the time per frame of each stage at the end",
     )
     p.add_argument("--height", type=finite, default=0.0, help="the objects' height in mm")
-    p.add_argument(
-        "--min-area", type=non_negative, default=None, help="smallest object outline area in px^2"
-    )
+    add_detection_arguments(p)
     frame_argument(p)
     p.add_argument(
         "--max-reconnect",
@@ -70,8 +69,10 @@ def main(args: argparse.Namespace) -> int:
     with command_line(OutputError):
         run.output_plan(args)
     # What the calibration cannot honour is said in the CLI's words before the loop starts.
-    locating_with(args, Calibration.load(args.calibration))
+    cal = Calibration.load(args.calibration)
+    locating_with(args, cal)
+    detect = checked_detection(args, cal)
     try:
-        return run.main(args)
+        return run.main(args, detect)
     except FrameSizeError as e:
         raise frame_size_in_words(e, "frame") from e

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal import _core, arguments
+from planarcal.calib.object_settings import ObjectSettings, detect_options_with
 from planarcal.errors import ArgumentError, ImageError
 from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
@@ -70,6 +71,7 @@ def detect_objects(
     blur_sigma: float = 1.5,
     canny: tuple[float, float] | None = None,
     mask: Any = None,
+    roi: tuple[int, int, int, int] | None = None,
     exclude_polygons: list[Any] | None = None,
     keep_border: bool = False,
     subpixel: bool = True,
@@ -81,6 +83,8 @@ def detect_objects(
     * ``blur_sigma``: the Gaussian blur before Canny, px (0 to the image's larger side).
     * ``canny``: the two Canny thresholds; by default from the image's median grey level.
     * ``mask``: an array of the image's size; objects are kept only where it is non-zero.
+    * ``roi``: x, y, width, height of a rectangle of the image (whole px); objects are kept
+      only where their centroid lies in it (as with a mask of that rectangle, without one).
     * ``exclude_polygons``: pixel polygons (e.g. the board's region, from
       ``board_region_px``) whose objects are ignored.
     * ``keep_border``: objects cut by the image border are dropped unless True (their
@@ -100,6 +104,7 @@ def detect_objects(
         blur_sigma=blur_sigma,
         canny=canny,
         mask=mask,
+        roi=roi,
         exclude_polygons=exclude_polygons,
         keep_border=keep_border,
         subpixel=subpixel,
@@ -150,6 +155,7 @@ def _detect(
     blur_sigma: float = 1.5,
     canny: tuple[float, float] | None = None,
     mask: Any = None,
+    roi: tuple[int, int, int, int] | None = None,
     exclude_polygons: list[Any] | None = None,
     keep_border: bool = False,
     subpixel: bool = True,
@@ -170,6 +176,8 @@ def _detect(
     min_area = (w * h) / 5000.0 if min_area_px is None else real("min_area_px", min_area_px)
     max_area = (w * h) / 4.0 if max_area_px is None else real("max_area_px", max_area_px)
     keep_mask = _mask(mask, (h, w))
+    # Checked as the settings check it (four whole numbers, a width and height of 1 or more).
+    rect = None if roi is None else ObjectSettings(roi=roi).roi
     blurred = cv2.GaussianBlur(u8, (0, 0), blur_sigma) if blur_sigma > 0 else u8
     if canny is None:
         # The median grey level of a 1-in-32 sample (every 2nd pixel of every 16th row), from
@@ -187,13 +195,18 @@ def _detect(
     _, areas, centroids, bboxes, traced, moments = _core.measure_contours(
         u8, contours, min_area, max_area, keep_border, subpixel, outlines
     )
-    if keep_mask is None and not exclude_polygons:
+    if keep_mask is None and rect is None and not exclude_polygons:
         return Found(centroids, areas, bboxes, traced, moments)
     keep = np.ones(len(areas), dtype=bool)
     if keep_mask is not None and len(areas):
         col = np.clip(centroids[:, 0].astype(np.int64), 0, w - 1)
         row = np.clip(centroids[:, 1].astype(np.int64), 0, h - 1)
         keep &= keep_mask[row, col]
+    if rect is not None:
+        # The mask's pixels: column x covers centroids from x to x + 1.
+        x, y, rw, rh = rect
+        cx, cy = centroids[:, 0], centroids[:, 1]
+        keep &= (cx >= x) & (cx < x + rw) & (cy >= y) & (cy < y + rh)
     for polygon in exclude_polygons or []:
         p = np.asarray(polygon, dtype=np.float32).reshape(-1, 1, 2)
         for i in np.flatnonzero(keep):
@@ -250,13 +263,17 @@ def locate_objects(
     robot's base frame, through the calibration's registration; an ArgumentError without
     one). Objects whose outlines are ``height_mm`` above the plane (the top face of parts of
     that height) are located where they really are, which needs a calibration with camera
-    intrinsics. Options are those of detect_objects.
+    intrinsics. Options are those of detect_objects; the calibration's object settings
+    (``calibration.object_settings``: area limits, roi, blur) are used where they name none
+    (an option given, None included, replaces the setting of its name). ArgumentError for
+    settings that are not valid together (a minimum area above the maximum).
 
     FrameSizeError, before any detection, if the image is not of the size the calibration
     was made on (see ``Calibration.check_image_size``)."""
     grey = _grey_u8(image)
-    calibration.check_image_size((grey.shape[1], grey.shape[0]))
-    found = _detect(grey, **options)
+    size = (grey.shape[1], grey.shape[0])
+    calibration.check_image_size(size)
+    found = _detect(grey, **detect_options_with(calibration.object_settings, options, size))
     if not len(found.areas):
         return []
     px = found.centroids

@@ -288,7 +288,9 @@ def _source_fault(tracker: Tracker) -> str | None:
     return None if down is None else f"{down}; planarcal is reopening it"
 
 
-def main(args: argparse.Namespace) -> int:
+def main(args: argparse.Namespace, detect_options: dict[str, Any] | None = None) -> int:
+    """The loop `planarcal run` runs; ``detect_options`` override the calibration's object
+    settings (see Tracker)."""
     # The tracker's fault log (a source lost and reopened, frames skipped) goes to stderr, like
     # the summary, unless the application set up logging itself.
     log = logging.getLogger("planarcal")
@@ -302,9 +304,7 @@ def main(args: argparse.Namespace) -> int:
     plan = output_plan(args)
     calibration = Calibration.load(args.calibration)
     source: int | str = int(args.source) if args.source.isdigit() else args.source
-    detect: dict[str, Any] = {}
-    if args.min_area is not None:
-        detect["min_area_px"] = args.min_area
+    detect = dict(detect_options or {})
     # The tracker first: a source that does not match the calibration is refused before the
     # output is opened (no empty file, no connection to the controller).
     tracker = Tracker(

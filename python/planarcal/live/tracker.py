@@ -68,6 +68,7 @@ from numpy.typing import NDArray
 
 from planarcal import _core, arguments
 from planarcal.calib.calibration import Calibration
+from planarcal.calib.object_settings import detect_options_with
 from planarcal.errors import ArgumentError, CameraError, FrameSizeError, ImageError, StateError
 from planarcal.live.capture import CLOSED_ADVICE, Camera, Frame
 from planarcal.live.capture_sources import file_url_path
@@ -246,7 +247,11 @@ class Tracker:
             the source ends or stop()).
         max_reconnect_s: give up reopening a source that stopped after this long (None:
             never; a file or folder is never reopened).
-        detect_options: passed to detect_objects (min_area_px, blur_sigma, mask, ...).
+        detect_options: passed to detect_objects (min_area_px, max_area_px, roi,
+            blur_sigma, mask, ...), over the calibration's object settings
+            (``calibration.object_settings``) field by field: an option given (None
+            included) replaces the setting of its name, the others are the calibration's.
+            ``tracker.detect_options`` is what each frame is detected with.
         timeout_s: the Camera's timeout for each blocking step.
         frame: "board" or "robot", the frame of reference of the positions (and of
             ``FrameResult.coords``); None (the default): "robot" if the calibration has a
@@ -255,7 +260,10 @@ class Tracker:
     Raises:
         FrameSizeError: the source's frames are not of the size the calibration was made on.
         IntrinsicsError: a height_mm with a calibration made without camera intrinsics.
-        ArgumentError: frame="robot" with a calibration that has no registration.
+        ArgumentError: frame="robot" with a calibration that has no registration; an
+            unknown detect option, or options that with the calibration's settings are not
+            valid ones (a negative area, a minimum above the maximum, an roi beyond the
+            calibration's image).
     """
 
     def __init__(
@@ -300,12 +308,17 @@ class Tracker:
         self.max_missing = max_missing
         self.max_frames = max_frames
         self.max_reconnect_s = max_reconnect_s
-        self.detect_options = dict(detect_options or {})
-        unknown = sorted(set(self.detect_options) - _DETECT_OPTIONS)
+        given = dict(detect_options or {})
+        unknown = sorted(set(given) - _DETECT_OPTIONS)
         if unknown:
             raise ArgumentError(
                 f"unknown detect_options {unknown}; detect_objects takes {sorted(_DETECT_OPTIONS)}"
             )
+        self.detect_options = detect_options_with(
+            calibration.object_settings, given, calibration.image_size
+        )
+        """detect_objects' options for every frame: the calibration's object settings with
+        those given over them."""
         self.frame: Coords = checked_frame(frame, calibration.robot_frame)
         """The frame of reference of the positions: "board" or "robot"."""
         # Checked before the source is opened: a height needs the camera's pose, the robot's
