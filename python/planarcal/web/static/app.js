@@ -739,6 +739,13 @@
       act(null, async () => {
         const answer = await request("POST", "/api/pick", { x: point.x, y: point.y });
         showPicked(answer);
+        // A point touched before: its coordinates to correct (adding replaces it).
+        const touches = state && state.registration ? state.registration.touches || [] : [];
+        const touched = touches.find((t) => t.id === answer.id);
+        const robot = touched && touched.robot ? touched.robot : [];
+        ["touch-x", "touch-y", "touch-z"].forEach((id, k) => {
+          $(id).value = robot[k] === undefined || robot[k] === null ? "" : String(robot[k]);
+        });
         $("touch-x").focus();
       });
     });
@@ -751,6 +758,9 @@
         return request("POST", "/api/calibrate", { max_error_mm: limit });
       }),
     );
+    $("max-error-mm").addEventListener("keydown", (event) => {
+      if (event.key === "Enter") $("calibrate").click();
+    });
     $("save").addEventListener("click", (e) => act(e.currentTarget, () => request("POST", "/api/save")));
 
     $("touch-add").addEventListener("click", (e) =>
