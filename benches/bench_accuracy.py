@@ -37,7 +37,7 @@
    within [0.67, 1.5], every bad placement named.
 
 Run: python benches/bench_accuracy.py [--scenes 24] [--error-bar-scenes 8] [--cells 12]
-     [--placement-seeds 4] [--failure-seeds 2] [--only SECTION] [--markdown]
+     [--placement-seeds 12] [--failure-seeds 2] [--only SECTION] [--markdown]
 """
 
 from __future__ import annotations
@@ -393,7 +393,7 @@ def main() -> None:
     )
     parser.add_argument("--cells", type=int, default=12, help="simulated robot cells")
     parser.add_argument(
-        "--placement-seeds", type=int, default=4, help="work cells per board, placements"
+        "--placement-seeds", type=int, default=12, help="work cells per board, placements"
     )
     parser.add_argument(
         "--failure-seeds", type=int, default=2, help="cells per failure case, placements"
