@@ -28,7 +28,7 @@ EXPORTED = sorted(
 )
 # Where something outside the input is at fault: a device or stream (an OSError), the order
 # of the calls (a RuntimeError), or a package not installed (an ImportError).
-NOT_THE_INPUT = {pc.Error, pc.CameraError, pc.StateError, pc.MissingDependencyError}
+NOT_THE_INPUT = {pc.Error, pc.CameraError, pc.StateError, pc.BusyError, pc.MissingDependencyError}
 
 H = np.array([[1.2, 0.1, 5.0], [-0.05, 0.9, 3.0], [1e-3, 2e-3, 1.0]])
 SRC = np.random.default_rng(0).uniform(0, 100, (12, 2))

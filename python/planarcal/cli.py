@@ -1,5 +1,5 @@
 """The `planarcal` command line: board, intrinsics, calibrate, register, check, locate, run,
-demo.
+live, demo.
 
 Exit status: 0 on success; 1 when the job fails on its data (no board in view, a file that
 cannot be read or written); 2 for a malformed command line (an unknown option, a value the
@@ -35,6 +35,7 @@ COMMANDS = {
     "check": "check a calibration file (or keep a deliberate edit of it: --accept-edits)",
     "locate": "locate objects in mm with a calibration",
     "run": "the production loop: objects in mm, frame after frame",
+    "live": "the live setup page in a browser: aim, focus, calibrate, register, watch",
     "demo": "the whole pipeline on a rendered scene of the paper's setup",
 }
 
@@ -51,6 +52,7 @@ _MODULES = {
     "check": "planarcal.commands.check",
     "locate": "planarcal.commands.locate",
     "run": "planarcal.commands.run",
+    "live": "planarcal.commands.live",
     "demo": "planarcal.commands.demo",
 }
 

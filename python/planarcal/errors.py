@@ -23,7 +23,9 @@ optional extra is not installed). The Rust bindings raise the classes below too
     │   └── BoardMismatchError (a BoardError) the image contradicts the board's description
     ├── CameraError              (OSError)
     ├── MissingDependencyError   (ImportError) an optional extra is not installed
+    ├── NotFoundError            (LookupError, ValueError) no such placement, figure, point
     └── StateError               (RuntimeError) a call the object's state does not allow
+        └── BusyError            another change is being made (the live page's one writer)
 
 Errors about one point say which, as attributes, so callers need not parse the message:
 ``index`` (the point's row in its array) and ``point_set`` (``"src"`` or ``"dst"``, the set of
@@ -44,6 +46,7 @@ __all__ = [
     "BoardMismatchError",
     "BoardNotFoundError",
     "BoardTurnedError",
+    "BusyError",
     "CalibrationFileError",
     "CameraError",
     "DegenerateError",
@@ -54,6 +57,7 @@ __all__ = [
     "IntrinsicsError",
     "LensModelError",
     "MissingDependencyError",
+    "NotFoundError",
     "OpenCVCompatibleArgumentError",
     "OpenCVCompatibleError",
     "OpenCVCompatiblePointAtInfinityError",
@@ -217,6 +221,16 @@ class MissingDependencyError(Error, ImportError):
 class StateError(Error, RuntimeError):
     """A call the object's state does not allow, such as iterating a Tracker a second time:
     the program's order is at fault, not an argument."""
+
+
+class BusyError(StateError):
+    """Another change is being made and did not end in time (the live page makes one change
+    at a time): try again."""
+
+
+class NotFoundError(Error, LookupError, ValueError):
+    """What a request names does not exist: a placement, a report figure, a board point (the
+    request is at fault: also a ValueError)."""
 
 
 class IntrinsicsError(Error, ValueError):

@@ -16,14 +16,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planarcal.calib.boards import Board
-from planarcal.calib.calibration import Calibration
+from planarcal.calib.calibration import Calibration, LensChoice
 from planarcal.calib.detection import detect_board
 from planarcal.calib.detector_options import detector_options
 from planarcal.calib.placement_set import detect_copies, detect_placement
 from planarcal.camera import CameraIntrinsics
 from planarcal.commands import board_arguments, board_from, count, not_a_folder, positive
 from planarcal.errors import BoardNotFoundError, ImageError
-from planarcal.homography import SOLVERS
+from planarcal.homography import SOLVERS, Solver
 from planarcal.images import load_image
 from planarcal.live.capture import Camera
 from planarcal.live.capture_sources import open_path
@@ -101,21 +101,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="skip the Levenberg-Marquardt refinement (the paper's method has none)",
     )
-    p.add_argument(
-        "--polarity",
-        default=None,
-        choices=("auto", "dark", "light"),
-        help="circle grids: dark dots on light paper, light on dark, or try both (auto, the "
-        "default)",
-    )
-    p.add_argument(
-        "--turned",
-        action="store_true",
-        default=None,
-        help="circle grids and chessboards: accept a board without an origin marker that lies "
-        "turned by 90 degrees in the image (refused by default: usually --cols and --rows "
-        "are swapped)",
-    )
+    add_detector_arguments(p)
     p.add_argument(
         "--lens",
         default="auto",
@@ -152,7 +138,27 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
 
-def _detector_options(args: argparse.Namespace, board: Board) -> dict[str, object]:
+def add_detector_arguments(p: argparse.ArgumentParser) -> None:
+    """The board detector's options, ``--polarity`` and ``--turned`` (see
+    ``detector_options_of``)."""
+    p.add_argument(
+        "--polarity",
+        default=None,
+        choices=("auto", "dark", "light"),
+        help="circle grids: dark dots on light paper, light on dark, or try both (auto, the "
+        "default)",
+    )
+    p.add_argument(
+        "--turned",
+        action="store_true",
+        default=None,
+        help="circle grids and chessboards: accept a board without an origin marker that lies "
+        "turned by 90 degrees in the image (refused by default: usually --cols and --rows "
+        "are swapped)",
+    )
+
+
+def detector_options_of(args: argparse.Namespace, board: Board) -> dict[str, object]:
     """``--polarity`` and ``--turned`` for the detector of the board's type, where it takes
     them; typed for a board whose detector does not, a malformed command line (exit 2)."""
     takes = detector_options(board.kind)
@@ -188,31 +194,25 @@ def main(args: argparse.Namespace) -> int:
     intrinsics = None
     if args.intrinsics is not None:
         intrinsics = CameraIntrinsics.load_yaml(args.intrinsics)
-    options = _detector_options(args, board)
+    options = detector_options_of(args, board)
     images = _read_images(args)
     names = [p.name for p in args.image] if args.image else ["camera"]
     detections, shown, names, reference = _detect(args, board, options, images, names)
-    lens = args.lens
-    if intrinsics is not None and lens == "auto":
-        lens = "none"
-    if len(detections) > 1:
-        if args.solver != "normalized_dlt" or args.no_refine:
-            raise argparse.ArgumentError(
-                None,
-                "--solver and --no-refine are the paper's single-view estimators: placements "
-                "are fitted jointly by Levenberg-Marquardt (leave them out)",
-            )
-        cal = Calibration.from_detections(
-            detections, reference=reference, lens=lens, intrinsics=intrinsics, names=names
+    if len(detections) > 1 and (args.solver != "normalized_dlt" or args.no_refine):
+        raise argparse.ArgumentError(
+            None,
+            "--solver and --no-refine are the paper's single-view estimators: placements "
+            "are fitted jointly by Levenberg-Marquardt (leave them out)",
         )
-    else:
-        cal = Calibration.from_detection(
-            detections[0],
-            solver=args.solver,
-            refine=not args.no_refine,
-            lens=lens,
-            intrinsics=intrinsics,
-        )
+    cal = fit_calibration(
+        detections,
+        reference,
+        names,
+        lens=args.lens,
+        intrinsics=intrinsics,
+        solver=args.solver,
+        refine=not args.no_refine,
+    )
     detection = detections[reference]
     image = shown[reference]
     if args.measured_pitch is not None:
@@ -245,6 +245,47 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
+def fit_calibration(
+    detections: list[Any],
+    reference: int,
+    names: list[str],
+    *,
+    lens: LensChoice = "auto",
+    intrinsics: CameraIntrinsics | None = None,
+    solver: Solver = "normalized_dlt",
+    refine: bool = True,
+) -> Calibration:
+    """The calibration the command fits from its detections: one view's homography (with
+    ``solver``, ``refine``), or several placements fitted jointly (the placements' names
+    are recorded in the file). The live page fits with this too, so that it saves the same
+    file, to the bit, as the command given the same images."""
+    if intrinsics is not None and lens == "auto":
+        lens = "none"
+    if len(detections) > 1:
+        return Calibration.from_detections(
+            detections, reference=reference, lens=lens, intrinsics=intrinsics, names=names
+        )
+    return Calibration.from_detection(
+        detections[0], solver=solver, refine=refine, lens=lens, intrinsics=intrinsics
+    )
+
+
+def detect_image(
+    image: Any,
+    board: Board,
+    k: int,
+    count: int,
+    reference: int,
+    name: str,
+    options: dict[str, object],
+) -> Any:
+    """Image k's detection among ``count`` images: a placement's when there are several (a
+    placement other than the reference may lie turned), else the one view's."""
+    if count > 1:
+        return detect_placement(image, board, k, reference, name, options)
+    return detect_board(image, board, **options)
+
+
 def _detect(
     args: argparse.Namespace,
     board: Board,
@@ -275,9 +316,7 @@ def _detect(
         for k, image in enumerate(images):
             try:
                 detections.append(
-                    detect_placement(image, board, k, reference, names[k], options)
-                    if len(images) > 1
-                    else detect_board(image, board, **options)
+                    detect_image(image, board, k, len(images), reference, names[k], options)
                 )
             except BoardNotFoundError as e:
                 _draw_failure(args, image, e)

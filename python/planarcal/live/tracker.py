@@ -237,7 +237,9 @@ class Tracker:
 
     Args:
         calibration: a Calibration (or a path to a calibration file).
-        source: a device index, stream URL, video file, image folder, or an open Camera.
+        source: a device index, stream URL, video file, image folder, or an open Camera;
+            None for a tracker fed only through ``process()`` (the live page's, whose
+            frames come from its own reader).
         height_mm: the objects' height above the plane (their tops are located where they
             are; needs a calibration with intrinsics).
         max_jump_mm: the farthest an object may move between frames and keep its ID.
@@ -269,7 +271,7 @@ class Tracker:
     def __init__(
         self,
         calibration: Calibration | str | os.PathLike[str],
-        source: int | str | os.PathLike[str] | Camera,
+        source: int | str | os.PathLike[str] | Camera | None,
         *,
         height_mm: float = 0.0,
         max_jump_mm: float = 25.0,
@@ -327,10 +329,12 @@ class Tracker:
         self._frame_size = calibration.image_size
         self.stats = LoopStats()
         self._timeout_s = timeout_s
+        self._camera: Camera | None = None
+        self._spec: int | str | os.PathLike[str] = ""
         if isinstance(source, Camera):
-            self._camera: Camera | None = source
-            self._spec: int | str | os.PathLike[str] = source.source
-        else:
+            self._camera = source
+            self._spec = source.source
+        elif source is not None:
             self._spec = source
             try:
                 self._camera = Camera(source, timeout_s=timeout_s, color=False)
@@ -379,6 +383,8 @@ class Tracker:
     def __iter__(self) -> Iterator[FrameResult]:
         if self._reader is not None:
             raise StateError("a Tracker can be iterated once")
+        if self._spec == "":
+            raise StateError("a Tracker made without a source is fed with process(), not iterated")
         self.stats = LoopStats()
         self._reader = threading.Thread(
             target=self._read_loop, name="planarcal-reader", daemon=True

@@ -44,6 +44,14 @@ def coverage_figure(
     return png_bytes(draw_coverage(image, cov, placement_labels(cal)))
 
 
+def placements_under(images: Sequence[Any]) -> Any:
+    """What the coverage is drawn over for several placements' images: their brightest
+    pixels, each board where it lay (the paper over the table); one image as it is."""
+    if len(images) > 1:
+        return np.max(np.stack([as_grey(im) for im in images]), axis=0)
+    return images[0] if images else None
+
+
 def placement_labels(cal: Any) -> list[str]:
     """Each placement's label: its index (0-based) and, when short, its name."""
     placements = tuple(getattr(cal, "placements", None) or ())

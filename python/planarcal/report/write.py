@@ -9,12 +9,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from planarcal.calib.calibration import Calibration
 from planarcal.files import atomic_write
-from planarcal.images import as_grey
-from planarcal.report.coverage import coverage_figure
+from planarcal.report.coverage import coverage_figure, placements_under
 from planarcal.report.deviations import deviation_figure
 from planarcal.report.drawing import draw_detection, png_bytes
 from planarcal.report.figure import require_matplotlib
@@ -60,9 +57,7 @@ def write_report(
         atomic_write(out / "uncertainty.png", uncertainty_figure(cal)),
     ]
     if cal.image_size is not None:
-        under = image
-        if len(placement_images) > 1:
-            under = np.max(np.stack([as_grey(im) for im in placement_images]), axis=0)
+        under = placements_under(placement_images) if len(placement_images) > 1 else image
         figure = coverage_figure(cal, under, max_error_mm=max_error_mm)
         written.append(atomic_write(out / "coverage.png", figure))
     if image is not None and detection is not None:

@@ -15,6 +15,7 @@ either unless ``--force`` asks for it; touches on one line with no hand given
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -23,7 +24,7 @@ from typing import Any
 
 from planarcal.calib.calibration import Calibration
 from planarcal.commands import positive
-from planarcal.robot.handedness import HANDEDNESS
+from planarcal.robot.handedness import HANDEDNESS, Handedness
 from planarcal.robot.registration import RobotFrame
 from planarcal.robot.summary import USABLE_MM, judged_mm, quality
 from planarcal.robot.touch_csv import (
@@ -33,7 +34,7 @@ from planarcal.robot.touch_csv import (
     read_touch_csv,
 )
 from planarcal.robot.touch_pairs import DEFAULT_POINT_NAME
-from planarcal.robot.transform_fit import MODELS
+from planarcal.robot.transform_fit import MODELS, Model
 
 
 def add_parser(subcommands: Any) -> argparse.ArgumentParser:
@@ -105,32 +106,72 @@ def add_parser(subcommands: Any) -> argparse.ArgumentParser:
     return p
 
 
-def main(args: argparse.Namespace) -> int:
-    """Runs ``planarcal register``: 0 when the registration was written, 1 when a named
-    outlier or a poor judgement (without --force) kept it from being written; errors
-    propagate (the CLI reports them)."""
-    cal = Calibration.load(args.calibration)
-    touches = read_touch_csv(args.points)
+@dataclasses.dataclass(frozen=True)
+class Registered:
+    """A registration fitted from touch points: the frame (named with the board's word for
+    its points), the calibration carrying it, and why it must not be written (a named
+    outlier, a poor judgement without ``force``), or None."""
+
+    frame: RobotFrame
+    calibration: Calibration
+    refusal: str | None
+
+
+def register_touches(
+    cal: Calibration,
+    touches: TouchPoints,
+    points_file: str,
+    *,
+    calibration_file: str | None = None,
+    model: Model = "rigid",
+    outlier_mm: float | None = None,
+    drop_outliers: bool = False,
+    handedness: Handedness | None = None,
+    force: bool = False,
+) -> Registered:
+    """The registration ``planarcal register`` fits from ``touches`` (read from
+    ``points_file``, named in the messages, as ``calibration_file`` is), with its rules for
+    writing it. The live page registers with this too."""
     point_name = DEFAULT_POINT_NAME if cal.board is None else cal.board.point_name
     if cal.board is not None:
-        check_point_name(touches, point_name, cal.board.describe(), args.points, args.calibration)
+        check_point_name(touches, point_name, cal.board.describe(), points_file, calibration_file)
     fitted = cal.register(
         touches.robot,
         dots=touches.dots,
         board_mm=touches.board if touches.kind == "board" else None,
         image_px=touches.board if touches.kind == "image" else None,
         robot_z=touches.robot_z,
-        model=args.model,
-        outlier_mm=args.outlier_mm,
-        drop_outliers=args.drop_outliers,
-        handedness=args.handedness,
+        model=model,
+        outlier_mm=outlier_mm,
+        drop_outliers=drop_outliers,
+        handedness=handedness,
     ).robot_frame
     assert fitted is not None
     # The board's word for pairs given as positions too: "touch corners nearer ...".
     frame = fitted.with_point_name(point_name)
-    registered = cal.with_robot_frame(frame)
-    refusal = _refusal(frame, touches, args)
-    saved = None if refusal else registered.save(args.output)
+    refusal = _refusal(frame, touches, points_file, force)
+    return Registered(frame, cal.with_robot_frame(frame), refusal)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Runs ``planarcal register``: 0 when the registration was written, 1 when a named
+    outlier or a poor judgement (without --force) kept it from being written; errors
+    propagate (the CLI reports them)."""
+    cal = Calibration.load(args.calibration)
+    touches = read_touch_csv(args.points)
+    done = register_touches(
+        cal,
+        touches,
+        str(args.points),
+        calibration_file=str(args.calibration),
+        model=args.model,
+        outlier_mm=args.outlier_mm,
+        drop_outliers=args.drop_outliers,
+        handedness=args.handedness,
+        force=args.force,
+    )
+    frame, refusal = done.frame, done.refusal
+    saved = None if refusal else done.calibration.save(args.output)
     if args.json:
         out: dict[str, Any] = {
             "calibration_file": None if saved is None else str(saved),
@@ -157,15 +198,15 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _refusal(frame: RobotFrame, touches: TouchPoints, args: argparse.Namespace) -> str | None:
+def _refusal(frame: RobotFrame, touches: TouchPoints, points_file: str, force: bool) -> str | None:
     """Why the registration must not be written, or None."""
     if frame.outliers and not frame.dropped_outliers:
         names = "; ".join(touches.describe(i) for i in frame.outliers)
         return (
-            f"{args.points} has touches that look like the wrong point ({names}); touch again "
+            f"{points_file} has touches that look like the wrong point ({names}); touch again "
             "and re-run, or give --drop-outliers to leave them out"
         )
-    if quality(frame) == "poor" and not args.force:
+    if quality(frame) == "poor" and not force:
         return (
             f"the registration is poor ({judged_mm(frame):.3g} mm: leave-one-out RMS "
             f"{frame.leave_one_out_rms_mm:.3g} mm, the map's own 1-sigma "
