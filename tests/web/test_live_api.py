@@ -11,6 +11,7 @@ import json
 import math
 import os
 import signal
+import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -226,6 +227,8 @@ def test_watch_shows_the_parts_and_saves_the_object_settings(calibrated: Any) ->
     assert Calibration.load(folder / "cell.json").object_settings.min_area_px == 1e6
     server.ok("POST", "/api/settings", {"min_area_px": None})
     server.wait_for("parts again", lambda s: len(s["watch"]["parts"]) >= 1, timeout=90)
+    server.ok("POST", "/api/settings/save")
+    assert Calibration.load(folder / "cell.json").object_settings.min_area_px is None
 
 
 @pytest.mark.parametrize(
@@ -286,3 +289,46 @@ def test_ctrl_c_stops_it_and_nothing_is_written_without_a_file(
     code, err = server.stop(signal.SIGINT)
     assert code == 130 and "stopped" in err  # the CLI's status for Ctrl-C
     assert list(tmp_path.iterdir()) == []
+
+
+def test_controllers_get_the_watched_frames_and_the_page_lists_them(
+    calibrated: Any, video: LiveVideo
+) -> None:
+    _, folder, _ = calibrated
+    with socket.socket() as probe:  # a free port for the controllers' server
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    args = ["--source", str(video.path), "--calibration", "cell.json"]
+    with live_server([*args, "-o", f"tcp-listen://127.0.0.1:{port}"], folder) as server:
+        state = server.ok("GET", "/api/state")
+        assert state["mode"] == "watch"  # the file exists: the page opens on the parts
+        with socket.create_connection(("127.0.0.1", port), timeout=30) as controller:
+            server.wait_for(
+                "the controller", lambda s: len(s["watch"]["output"]["controllers"]) == 1
+            )
+            reader = controller.makefile("r")
+            seen = [json.loads(reader.readline())]
+            while not seen[-1]["objects"] and len(seen) < video.frame_count * 2:
+                seen.append(json.loads(reader.readline()))  # the parts come after the board
+        assert all(line["coords"] in ("board", "robot") for line in seen)
+        assert seen[-1]["objects"], "no parts in a whole loop of the video"
+        assert server.ok("GET", "/api/state")["watch"]["output"]["sent"] >= len(seen)
+
+
+def test_touches_on_one_line_need_the_hand_and_get_it(calibrated: Any, video: LiveVideo) -> None:
+    _, folder, _ = calibrated
+    args = ["--source", str(video.path), "--calibration", "cell.json"]
+    with live_server(args, folder) as server:
+        board = video.board.world_points()
+        for point in (0, 4, 8):  # the board's first row
+            x, y = board[point]
+            state = server.ok(
+                "POST", "/api/touches", {"id": point, "robot": [300.0 - y, 100.0 + x]}
+            )
+        assert state["registration"]["fit"] is None
+        assert "one line" in state["registration"]["message"]
+        status, answer = server.call("POST", "/api/handedness", {"handedness": "sideways"})
+        assert status == 400 and "handedness must be" in answer["error"]
+        state = server.ok("POST", "/api/handedness", {"handedness": "left"})
+        assert state["registration"]["handedness"] == "left"
+        assert state["registration"]["fit"]["outliers"] == []

@@ -15,10 +15,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from planarcal.commands import BOARD_GIVEN, board_arguments, board_from, positive
+from planarcal.commands import BOARD_GIVEN, board_arguments, board_from, command_line, positive
 from planarcal.commands.calibrate import add_detector_arguments, detector_options_of
 from planarcal.commands.locate import add_detection_arguments, detection_overrides
-from planarcal.errors import ArgumentError, MissingDependencyError
+from planarcal.errors import ArgumentError, MissingDependencyError, OutputError
+from planarcal.live import run
 
 DESCRIPTION = (
     "Serve the live setup page: the live image with the board's detection, focus and "
@@ -73,6 +74,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(type=None)
     add_detector_arguments(p)
     add_detection_arguments(p)
+    # The watch view's frames to controllers, as `planarcal run` sends them: none unless -o.
+    run.add_output_arguments(p)
+    p.set_defaults(output=None)
+    for action in p._actions:
+        if action.dest == "output":
+            action.help = (
+                "the watch view's frames as lines, as planarcal run writes them (default: none): "
+                "a file, tcp://HOST:PORT, udp://HOST:PORT or tcp-listen://HOST:PORT (controllers "
+                "connect; the page lists them)"
+            )
 
 
 def _loopback(host: str) -> bool:
@@ -124,8 +135,10 @@ def main(args: argparse.Namespace) -> int:
             "pip install 'planarcal[live]'",
             name=e.name,
         ) from None
+    from planarcal.live.output_server import ServerOutput  # noqa: PLC0415
+    from planarcal.live.outputs import open_output  # noqa: PLC0415
     from planarcal.web.frames import FramePump  # noqa: PLC0415 - OpenCV, after the check
-    from planarcal.web.session import LiveSession  # noqa: PLC0415
+    from planarcal.web.session import Feed, LiveSession  # noqa: PLC0415
 
     typed = args.type is not None or bool(getattr(args, BOARD_GIVEN, None))
     if args.type is None:
@@ -135,11 +148,23 @@ def main(args: argparse.Namespace) -> int:
     token = args.token
     if token is None and not _loopback(args.host):
         token = secrets.token_urlsafe(16)
+    plan = None
+    if args.output is not None:
+        with command_line(OutputError):
+            plan = run.output_plan(args)
     sock = _bound_socket(args.host, args.port)
     source: int | str = int(args.source) if args.source.isdigit() else args.source
     with tempfile.TemporaryDirectory(prefix="planarcal-live-") as workdir:
         pump = FramePump(source)
+        feed = None
         try:
+            if plan is not None:
+                feed = Feed(open_output(plan.spec, **plan.server), plan.format, plan.trigger)
+                if isinstance(feed.output, ServerOutput):
+                    print(
+                        f"planarcal live: controllers connect to {feed.output.address}",
+                        file=sys.stderr,
+                    )
             session = LiveSession(
                 pump,
                 board=board,
@@ -149,9 +174,12 @@ def main(args: argparse.Namespace) -> int:
                 max_error_mm=args.max_error_mm,
                 detector_options=None,
                 settings=detection_overrides(args),
+                output=feed,
             )
         except BaseException:
             pump.close()
+            if feed is not None:
+                feed.close()
             raise
         try:
             session.options.update(detector_options_of(args, session.board))

@@ -289,6 +289,11 @@ class _Api:
         saved = await run_in_threadpool(self.session.register, body.get("force", False))
         return JSONResponse({"saved": str(saved)})
 
+    async def handedness(self, request: Request) -> Response:
+        body = await _json_body(request)
+        await run_in_threadpool(self.session.set_handedness, body.get("handedness"))
+        return await self.state(request)
+
     async def settings(self, request: Request) -> Response:
         await run_in_threadpool(self.session.set_settings, await _json_body(request))
         return await self.state(request)
@@ -320,6 +325,7 @@ def create_app(session: LiveSession, *, token: str | None = None) -> ASGIApp:
         Route("/api/touches/{index}", _guarded(api.drop_touch), methods=["DELETE"]),
         Route("/api/touches.csv", _guarded(api.touches_csv), methods=["GET", "PUT"]),
         Route("/api/register", _guarded(api.register), methods=["POST"]),
+        Route("/api/handedness", _guarded(api.handedness), methods=["POST"]),
         Route("/api/settings", _guarded(api.settings), methods=["POST"]),
         Route("/api/settings/save", _guarded(api.save_settings), methods=["POST"]),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),

@@ -18,6 +18,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import dataclasses
+import functools
 import math
 import threading
 import time
@@ -45,8 +46,13 @@ from planarcal.errors import (
     StateError,
 )
 from planarcal.files import atomic_write
-from planarcal.live.tracker import Tracker
+from planarcal.live.line_format import LineFormat
+from planarcal.live.output_server import ServerOutput
+from planarcal.live.output_server_stats import ServerStats
+from planarcal.live.output_sink import Output
+from planarcal.live.tracker import FrameResult, Tracker
 from planarcal.report.drawing import png_bytes
+from planarcal.robot.handedness import HANDEDNESS, Handedness
 from planarcal.robot.register_command import Registered, register_touches
 from planarcal.robot.summary import quality
 from planarcal.robot.touch_csv import read_touch_csv
@@ -86,6 +92,43 @@ class Captured:
     @property
     def outline_px(self) -> F64:
         return convex_hull(self.detection.image_points)
+
+
+@dataclasses.dataclass(frozen=True)
+class Feed:
+    """The watch view's frames as ``planarcal run`` writes them: its output (opened from
+    ``run.output_plan``), the line format, and whether controllers ask for each frame
+    (trigger mode)."""
+
+    output: Output
+    format: LineFormat
+    trigger: bool = False
+
+    def feed(self, result: FrameResult) -> None:
+        if self.trigger and isinstance(self.output, ServerOutput):
+            self.output.answer(result.timestamp, functools.partial(self.format.frame, result))
+        else:
+            self.output.send(self.format.frame(result))
+
+    def state(self) -> dict[str, Any]:
+        """Where the lines go, how many got there and were lost; a server's controllers."""
+        stats = self.output.stats
+        out: dict[str, Any] = {
+            "spec": str(getattr(self.output, "spec", "")),
+            "sent": stats.sent,
+            "dropped": stats.dropped,
+        }
+        if isinstance(stats, ServerStats):
+            out["address"] = stats.address
+            out["controllers"] = [
+                {"peer": c.peer, "sent": c.sent, "dropped": c.dropped}
+                for c in stats.per_client
+                if c.connected
+            ]
+        return out
+
+    def close(self) -> None:
+        self.output.close()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,6 +182,8 @@ class LiveSession:
         max_error_mm: the limit the error map outlines (None: the map's default).
         detector_options: the board detector's options (``--polarity``, ``--turned``).
         settings: object-detection settings that override the file's for this session.
+        output: where the watch view's frames go as lines too (``planarcal run``'s outputs:
+            controllers connected to a tcp-listen server, a file, a TCP or UDP peer).
         workdir: a private folder for the report's figures and the touch CSV.
     """
 
@@ -153,8 +198,10 @@ class LiveSession:
         max_error_mm: float | None = None,
         detector_options: dict[str, Any] | None = None,
         settings: dict[str, Any] | None = None,
+        output: Feed | None = None,
     ) -> None:
         self.pump = pump
+        self.output = output
         self.path = calibration_path
         self.workdir = workdir
         self.max_error_mm = max_error_mm
@@ -185,6 +232,7 @@ class LiveSession:
         self.touches: dict[int, tuple[float, ...]] = {}
         self.registered: Registered | None = None
         self.registration_error: str | None = None
+        self.handedness: Handedness | None = None
         self.picked: int | None = None
         self.error: str | None = None
         self._state = threading.RLock()
@@ -222,6 +270,8 @@ class LiveSession:
         for t in self._threads:
             t.join(timeout=10.0)
         self.pump.close()
+        if self.output is not None:
+            self.output.close()
 
     def _analyse_loop(self) -> None:
         last = 0
@@ -256,6 +306,8 @@ class LiveSession:
             message = "no calibration yet: set up and calibrate first"
             return Analysis(frame.number, time.monotonic(), "watch", message=message)
         result = tracker.process(frame.image, frame.number)
+        if self.output is not None:
+            self.output.feed(result)
         parts = tuple(
             {
                 "id": o.id,
@@ -540,6 +592,18 @@ class LiveSession:
             self.touches[point] = values
             self._refit_registration()
 
+    def set_handedness(self, handedness: Any) -> None:
+        """The robot frame's hand for the fit (``planarcal register --handedness``): needed
+        when the touches lie near one line; None: from the touches."""
+        if handedness not in (None, *HANDEDNESS):
+            raise ArgumentError(
+                f"handedness must be one of {', '.join(HANDEDNESS)} or null, got {handedness!r}"
+            )
+        with self._writing():
+            self.handedness = handedness
+            if self.calibration is not None:
+                self._refit_registration()
+
     def drop_touch(self, point: int) -> None:
         with self._writing():
             if point not in self.touches:
@@ -593,7 +657,11 @@ class LiveSession:
         path = self.workdir / TOUCHES_FILE
         atomic_write(path, self.touches_csv())
         return register_touches(
-            self._calibration(), read_touch_csv(path), TOUCHES_FILE, force=force
+            self._calibration(),
+            read_touch_csv(path),
+            TOUCHES_FILE,
+            force=force,
+            handedness=self.handedness,
         )
 
     def register(self, force: bool = False) -> Path:
@@ -693,6 +761,7 @@ class LiveSession:
                 "frame": self._tracker.frame if self._tracker is not None else None,
                 "parts": list(analysis.parts) if analysis and analysis.mode == "watch" else [],
                 "message": analysis.message if analysis and analysis.mode == "watch" else None,
+                "output": None if self.output is None else self.output.state(),
             },
             "error": self.pump.error or self.error,
         }
@@ -754,10 +823,21 @@ class LiveSession:
                 "outliers": self._outlier_ids(),
                 "refused": registered.refusal,
             }
-        touches = []
-        for (k, robot), residual in zip(self.touches.items(), residuals, strict=False):
-            touches.append({"id": k, "robot": list(robot), "residual_mm": residual})
-        return {"touches": touches, "fit": fit, "message": self.registration_error}
+        analysis = self._analysis
+        seen: dict[int, list[float]] = {}
+        if analysis is not None and analysis.detection is not None:
+            found = analysis.detection
+            seen = dict(zip(found.ids.tolist(), found.image_points.tolist(), strict=True))
+        touches = [
+            {"id": k, "robot": list(robot), "image_px": seen.get(k), "residual_mm": residual}
+            for (k, robot), residual in zip(self.touches.items(), residuals, strict=False)
+        ]
+        return {
+            "touches": touches,
+            "fit": fit,
+            "message": self.registration_error,
+            "handedness": self.handedness,
+        }
 
 
 def _number(name: str, value: Any) -> float:
