@@ -332,3 +332,21 @@ def test_touches_on_one_line_need_the_hand_and_get_it(calibrated: Any, video: Li
         state = server.ok("POST", "/api/handedness", {"handedness": "left"})
         assert state["registration"]["handedness"] == "left"
         assert state["registration"]["fit"]["outliers"] == []
+
+
+def test_where_the_board_is_not_found_the_page_says_why_and_shows_what_was_seen(
+    calibrated: Any,
+) -> None:
+    server, _, _ = calibrated
+    server.ok("POST", "/api/mode", {"mode": "setup"})
+    state = server.wait_for(
+        "a frame without the board",  # the parts' part of the video
+        lambda s: not s["detection"]["found"] and bool(s["detection"].get("diagnostics")),
+        timeout=90,
+    )
+    assert "no 9 x 7 circle grid (63 dots) found" in state["detection"]["message"]
+    status, png = server.call("GET", "/api/diagnostics.png")
+    if status == 404:  # the board came back meanwhile: wait for the next frame without it
+        server.wait_for("no board", lambda s: not s["detection"]["found"], timeout=90)
+        status, png = server.call("GET", "/api/diagnostics.png")
+    assert status == 200 and png[:4] == b"\x89PNG"

@@ -223,6 +223,10 @@ class _Api:
         data = await run_in_threadpool(self.session.placement_png, index)
         return Response(data, media_type="image/png")
 
+    async def diagnostics_png(self, request: Request) -> Response:
+        data = await run_in_threadpool(self.session.diagnostics_png)
+        return Response(data, media_type="image/png", headers={"Cache-Control": "no-store"})
+
     async def coverage_png(self, request: Request) -> Response:
         data = self.session.coverage_png
         if data is None:
@@ -316,6 +320,7 @@ def create_app(session: LiveSession, *, token: str | None = None) -> ASGIApp:
         Route("/api/placements/{index}", _guarded(api.drop_placement), methods=["DELETE"]),
         Route("/api/placements/{index}.png", _guarded(api.placement_png)),
         Route("/api/coverage.png", _guarded(api.coverage_png)),
+        Route("/api/diagnostics.png", _guarded(api.diagnostics_png)),
         Route("/api/calibrate", _guarded(api.calibrate), methods=["POST"]),
         Route("/api/report/{name}", _guarded(api.figure)),
         Route("/api/save", _guarded(api.save), methods=["POST"]),

@@ -241,6 +241,8 @@ class LiveSession:
         self._detector = LiveDetector(self.board, self.options)
         self._tracker: Tracker | None = None
         self._analysis: Analysis | None = None
+        # The newest frame the board was not found in, with the detector's record of it.
+        self._failure: tuple[U8, BoardNotFoundError] | None = None
         self._jpeg: tuple[int, bytes] = (0, b"")
         self._shown = threading.Condition()
         self.display_rate = Rate()
@@ -294,7 +296,9 @@ class LiveSession:
         try:
             found = self._detector.detect(frame.image)
         except BoardNotFoundError as e:
+            self._failure = (frame.image, e)
             return Analysis(frame.number, time.monotonic(), mode, message=str(e))
+        self._failure = None
         focus = board_focus(frame.image, found).to_dict()
         return Analysis(frame.number, time.monotonic(), mode, found, None, focus)
 
@@ -471,6 +475,17 @@ class LiveSession:
         under = placements_under([p.image for p in self.placements])
         labels = [str(k + 1) for k in range(len(self.placements))]
         self.coverage_png = png_bytes(draw_coverage(under, self.coverage, labels))
+
+    def diagnostics_png(self) -> bytes:
+        """What the search saw in the newest frame the board was not found in (the figure
+        ``planarcal calibrate --report`` draws when it fails)."""
+        from planarcal.report.failure import detection_failure_figure  # noqa: PLC0415
+
+        failure = self._failure
+        if failure is None:
+            raise NotFoundError("the board is found: nothing to diagnose")
+        image, error = failure
+        return detection_failure_figure(image, error.diagnostics, str(error))
 
     def placement_png(self, index: int) -> bytes:
         with self._state:
@@ -771,7 +786,12 @@ class LiveSession:
             return {"found": False, "points": 0, "message": "looking for the board"}
         found = analysis.detection
         if found is None:
-            return {"found": False, "points": 0, "message": analysis.message}
+            return {
+                "found": False,
+                "points": 0,
+                "message": analysis.message,
+                "diagnostics": self._failure is not None,
+            }
         axes = overlay.board_axes_px(found)
         return {
             "found": True,

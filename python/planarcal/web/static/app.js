@@ -297,6 +297,16 @@
       : "Not found";
     box.appendChild(el("p", { className: d.found ? "verdict good" : "verdict bad", text: verdict }));
     if (d.message) box.appendChild(el("p", { className: d.found ? "detail" : "advice", text: d.message }));
+    if (!d.found && d.diagnostics) {
+      const link = el("a", {
+        id: "diagnostics",
+        href: "/api/diagnostics.png?t=" + Date.now(),
+        target: "_blank",
+        rel: "noopener",
+        text: "What the search saw (figure)",
+      });
+      box.appendChild(el("p", {}, [link]));
+    }
     box.classList.toggle("found", !!d.found);
   }
 
