@@ -350,3 +350,27 @@ def test_where_the_board_is_not_found_the_page_says_why_and_shows_what_was_seen(
         server.wait_for("no board", lambda s: not s["detection"]["found"], timeout=90)
         status, png = server.call("GET", "/api/diagnostics.png")
     assert status == 200 and png[:4] == b"\x89PNG"
+
+
+def test_a_calibration_of_another_size_is_refused_unless_set_up_anew(
+    calibrated: Any, video: LiveVideo
+) -> None:
+    _, folder, _ = calibrated
+    Calibration.load(folder / "cell.json").for_frame_size(640, 360).save(folder / "small.json")
+    args = [sys.executable, "-m", "planarcal", "live", "--source", str(video.path)]
+    run = subprocess.run(
+        [*args, "--calibration", "small.json", "--port", "0"],
+        cwd=folder,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert run.returncode == 1 and run.stdout == ""
+    assert "640" in run.stderr and "--recalibrate" in run.stderr
+    with live_server(
+        ["--source", str(video.path), "--calibration", "small.json", "--recalibrate"], folder
+    ) as server:
+        state = server.ok("GET", "/api/state")
+        assert state["mode"] == "setup" and state["calibration"] is None
+        assert state["board"]["points"] == 63  # the file's board
+    assert Calibration.load(folder / "small.json").image_size == (640, 360)  # not written

@@ -42,6 +42,7 @@ from planarcal.errors import (
     BoardNotFoundError,
     BusyError,
     Error,
+    FrameSizeError,
     NotFoundError,
     StateError,
 )
@@ -219,7 +220,17 @@ class LiveSession:
             )
         self.board: Board = board
         if self.calibration is not None:
-            self.calibration.check_image_size(pump.size, what="the source's frames")
+            try:
+                self.calibration.check_image_size(pump.size, what="the source's frames")
+            except FrameSizeError as e:
+                if not recalibrate:
+                    raise FrameSizeError(
+                        f"{e} (to set the cell up anew at this size, give --recalibrate)",
+                        e.frame_size,
+                        e.calibration_size,
+                    ) from None
+                # Set up anew: the file's mapping is of another size, its board still serves.
+                self.calibration, self.saved = None, False
         base = self.calibration.object_settings if self.calibration else ObjectSettings()
         self.settings = base.with_(**(settings or {}))
         self.mode = "watch" if self.calibration is not None and not recalibrate else "setup"
