@@ -182,6 +182,8 @@ def main(args: argparse.Namespace) -> int:
                 feed.close()
             raise
         try:
+            # --polarity / --turned, checked against the board now known (maybe the file's);
+            # the session's detector reads this dict.
             session.options.update(detector_options_of(args, session.board))
             print(_url(args.host, sock, token), flush=True)
             config = uvicorn.Config(
