@@ -4,8 +4,9 @@ The search (in the Rust core) is USAC-style MSAC: minimal 4-point samples (PROSA
 quality scores are given, or when outliers dominate and neighbourhood consistency can rank
 the matches), cheap sample checks, SPRT early rejection, local optimisation of every new best
 model and termination adapted to the confidence. The best model is refitted to its inliers
-(normalised DLT, then Levenberg-Marquardt) and the inlier mask recomputed from the final H,
-so the two always agree. ``method="lmeds"`` is least median of squares instead: no
+(normalised DLT, then Levenberg-Marquardt; then with a Cauchy kernel where their residuals
+have a heavier tail than Gaussian noise, as real matches do) and the inlier mask recomputed
+from the final H, so the two always agree. ``method="lmeds"`` is least median of squares instead: no
 threshold, at most 50% outliers.
 
 Deterministic: the same inputs and ``seed`` give bit-identical results on every run and any

@@ -7,7 +7,9 @@
 //! optimisation of every model that beats the best or has more support than it, and
 //! termination from the confidence (RANSAC's rule, and PROSAC's where it samples by rank:
 //! progressive.rs). The best model is then refitted to its inliers (normalised DLT, then
-//! Levenberg-Marquardt) and the inlier mask recomputed from the final H, so the two agree.
+//! Levenberg-Marquardt), refitted with a Cauchy kernel where the inliers' residuals have a
+//! heavier tail than Gaussian noise (MSAC; robust_refit.rs), and the inlier mask recomputed
+//! from the final H, so the two agree.
 //! A model needs more support than chance gives (chance.rs), or there is no result. LMedS
 //! minimises the median squared residual instead, and needs no threshold.
 //!
@@ -21,6 +23,7 @@ mod guided;
 mod local_opt;
 mod minimal;
 mod progressive;
+mod robust_refit;
 mod sampler;
 mod sprt;
 
@@ -34,6 +37,7 @@ use crate::alloc;
 use crate::correspondences::Correspondences;
 use crate::error::{HomographyError, Result};
 use crate::estimate::{estimate, refine_homography, Solver};
+use crate::orientation::orient_and_scale;
 use crate::threads;
 use crate::Point;
 
@@ -794,6 +798,7 @@ fn finish(
     threshold: Option<f64>,
 ) -> Result<RobustResult> {
     let n = data.n;
+    let msac = threshold.is_some();
     let threshold = threshold.unwrap_or_else(|| search.t2.sqrt() / data.dst_norm.scale);
     let Some(best) = search.best else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
@@ -830,9 +835,22 @@ fn finish(
             }
         }
     }
-    let Some((h, e2)) = fitted else {
+    let Some((mut h, mut e2)) = fitted else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     };
+    // MSAC: the robust (Cauchy) refit around the least-squares one (robust_refit.rs).
+    if msac {
+        if let Some(robust) = robust_refit::refit(data, &h, &e2, t2) {
+            if let Ok(robust) = orient_and_scale(&robust, src) {
+                let robust_e2 = squared_errors(&robust, src, dst)?;
+                // It must keep enough inliers (a kernel cannot drag the fit off them).
+                let count = |e2: &[f64]| e2.iter().filter(|&&v| v <= t2).count();
+                if count(&robust_e2) >= 4 {
+                    (h, e2) = (robust, robust_e2);
+                }
+            }
+        }
+    }
     let inliers = alloc::collect(e2.iter().map(|&v| v <= t2))?;
     let n_inliers = inliers.iter().filter(|&&b| b).count();
     if n_inliers < 4 {

@@ -1,0 +1,240 @@
+//! The final robust refit: iteratively reweighted Gauss-Newton on the one-sided transfer error
+//! with a Cauchy kernel, over the points within a few thresholds of the least-squares fit.
+//! Real matches are not Gaussian: a threshold of a few pixels lets in matches that are off by
+//! one or two (a feature a little displaced, a point just off the plane), which a plain
+//! least-squares fit weighs fully. The kernel runs only where the inliers' residuals have a
+//! heavier tail than a Gaussian's (more beyond TAIL sigma than chance explains, sigma from
+//! their median), so on Gaussian noise the least-squares fit, the maximum-likelihood one,
+//! is kept as it is. Measured on real SIFT pairs (photographs warped by known homographies,
+//! mean error to the truth): mild 0.125 -> 0.103 px, strong 0.295 -> 0.288, extreme 0.843
+//! -> 0.842; board views unchanged (their tails are not heavy).
+
+use nalgebra::{Matrix3, SMatrix, SVector};
+
+use super::data::Data;
+
+type Mat8 = SMatrix<f64, 8, 8>;
+type Vec8 = SVector<f64, 8>;
+
+/// The kernel's scale in units of the inliers' noise sigma: wide, so that the inliers' core
+/// keeps nearly full weight (measured on real pairs, 2 and 3 sigma cost accuracy on the most
+/// extreme views, 6 did not).
+const SCALE_IN_SIGMA: f64 = 6.0;
+/// Points further than this many thresholds from the least-squares fit are left out.
+const REACH: f64 = 2.0;
+/// Residuals beyond this many sigma make the tail (a Gaussian puts 4.4 % of them there).
+const TAIL: f64 = 2.5;
+/// Median of the norm of a 2-D standard normal: sigma = median residual / this.
+const MEDIAN_NORM: f64 = 1.177_410_022_515_474_6;
+const MAX_ITERATIONS: usize = 10;
+/// Fewest points the refit needs (as local optimisation).
+const MIN_POINTS: usize = 8;
+
+/// The robust refit of `h` (caller's units), given its squared errors `e2` over all points
+/// and the squared threshold `t2` (caller's units); None when it cannot improve on it (too
+/// few points, exact data, a degenerate step).
+pub fn refit(data: &Data, h: &Matrix3<f64>, e2: &[f64], t2: f64) -> Option<Matrix3<f64>> {
+    let mut inlier_r: Vec<f64> = e2.iter().filter(|&&v| v <= t2).map(|v| v.sqrt()).collect();
+    if inlier_r.len() < MIN_POINTS {
+        return None;
+    }
+    let mid = inlier_r.len() / 2;
+    let median = *inlier_r.select_nth_unstable_by(mid, f64::total_cmp).1;
+    // Gaussian noise: keep the least-squares fit, the maximum-likelihood one. Only a tail
+    // heavier than a Gaussian's beyond TAIL sigma calls for the kernel.
+    let sigma = median / MEDIAN_NORM;
+    let m = inlier_r.len() as f64;
+    let expected = m * (-0.5 * TAIL * TAIL).exp();
+    let observed = inlier_r.iter().filter(|&&r| r > TAIL * sigma).count() as f64;
+    if !(observed > 2.0 * expected + 3.0 * expected.sqrt()) {
+        return None;
+    }
+    let s = data.dst_norm.scale;
+    // The kernel's scale, normalised units; exact data need no refit.
+    let c = SCALE_IN_SIGMA * sigma * s;
+    if !(c > 1e-12) {
+        return None;
+    }
+    let c2 = c * c;
+    let reach2 = REACH * REACH * t2;
+    let idx: Vec<usize> = (0..e2.len()).filter(|&i| e2[i] <= reach2).collect();
+    if idx.len() < MIN_POINTS {
+        return None;
+    }
+    let hn = data.dst_norm.matrix() * h * data.src_norm.inverse_matrix();
+    let h33 = hn[(2, 2)];
+    if !(h33.abs() > 1e-8 * hn.norm()) {
+        return None;
+    }
+    let hn = hn / h33;
+    let mut p = Vec8::from_column_slice(&[
+        hn[(0, 0)],
+        hn[(0, 1)],
+        hn[(0, 2)],
+        hn[(1, 0)],
+        hn[(1, 1)],
+        hn[(1, 2)],
+        hn[(2, 0)],
+        hn[(2, 1)],
+    ]);
+    let cost = |p: &Vec8| -> f64 {
+        let mut sum = 0.0;
+        for &i in &idx {
+            let Some(r2) =
+                residual(p, data.src[i], data.dst[i]).map(|(_, _, ex, ey, _)| ex * ex + ey * ey)
+            else {
+                return f64::INFINITY;
+            };
+            sum += (r2 / c2).ln_1p();
+        }
+        sum
+    };
+    let mut current = cost(&p);
+    if !current.is_finite() {
+        return None;
+    }
+    for _ in 0..MAX_ITERATIONS {
+        let (mut jtj, mut jtr) = (Mat8::zeros(), Vec8::zeros());
+        for &i in &idx {
+            let [x, y] = data.src[i];
+            let (xh, yh, ex, ey, iw) = residual(&p, data.src[i], data.dst[i])?;
+            let w = 1.0 / (1.0 + (ex * ex + ey * ey) / c2);
+            let jx = Vec8::from_column_slice(&[
+                x * iw,
+                y * iw,
+                iw,
+                0.0,
+                0.0,
+                0.0,
+                -xh * x * iw,
+                -xh * y * iw,
+            ]);
+            let jy = Vec8::from_column_slice(&[
+                0.0,
+                0.0,
+                0.0,
+                x * iw,
+                y * iw,
+                iw,
+                -yh * x * iw,
+                -yh * y * iw,
+            ]);
+            jtj += w * (jx * jx.transpose() + jy * jy.transpose());
+            jtr += w * (jx * ex + jy * ey);
+        }
+        let step = jtj.cholesky()?.solve(&(-jtr));
+        // Halve the step until the robust cost falls.
+        let mut scale = 1.0;
+        let mut accepted = false;
+        for _ in 0..8 {
+            let trial = p + step * scale;
+            let c = cost(&trial);
+            if c < current {
+                p = trial;
+                let gain = current - c;
+                current = c;
+                accepted = gain > 1e-12 * current.max(1e-300);
+                break;
+            }
+            scale *= 0.5;
+        }
+        if !accepted {
+            break;
+        }
+    }
+    let hn = Matrix3::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], 1.0);
+    let h = data.dst_norm.inverse_matrix() * hn * data.src_norm.matrix();
+    h.iter().all(|v| v.is_finite()).then_some(h)
+}
+
+/// (x^, y^, x^ - u, y^ - v, 1/w) of the point under p (h33 = 1); None behind the horizon.
+#[inline(always)]
+fn residual(p: &Vec8, [x, y]: [f64; 2], [u, v]: [f64; 2]) -> Option<(f64, f64, f64, f64, f64)> {
+    let w = p[6] * x + p[7] * y + 1.0;
+    if !(w > 0.0) {
+        return None;
+    }
+    let iw = 1.0 / w;
+    let xh = (p[0] * x + p[1] * y + p[2]) * iw;
+    let yh = (p[3] * x + p[4] * y + p[5]) * iw;
+    Some((xh, yh, xh - u, yh - v, iw))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimate::{estimate, Solver};
+    use crate::robust::sampler::Pcg32;
+    use crate::Point;
+
+    const TRUTH: [f64; 9] = [1.05, -0.1, 20.0, 0.08, 0.95, -30.0, 1e-4, -5e-5, 1.0];
+
+    fn project(h: &Matrix3<f64>, p: &Point) -> Point {
+        let q = h * nalgebra::Vector3::new(p[0], p[1], 1.0);
+        [q[0] / q[2], q[1] / q[2]]
+    }
+
+    fn gaussian(rng: &mut Pcg32) -> f64 {
+        let (a, b) = (rng.unit().max(1e-12), rng.unit());
+        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+    }
+
+    /// (LS error, robust error, whether the kernel ran) to the truth, mean over the points,
+    /// with noise sigma 0.3 px and a share `tail` of the points at sigma 1.5 px (the gate wants a clear tail).
+    fn fits(seed: u64, tail: f64) -> (f64, f64, bool) {
+        let truth = Matrix3::from_row_slice(&TRUTH);
+        let mut rng = Pcg32::new(seed, 1);
+        let (mut src, mut dst) = (Vec::new(), Vec::new());
+        for _ in 0..300 {
+            let p = [rng.unit() * 1280.0, rng.unit() * 720.0];
+            let q = project(&truth, &p);
+            let sigma = if rng.unit() < tail { 1.5 } else { 0.3 };
+            src.push(p);
+            dst.push([
+                q[0] + sigma * gaussian(&mut rng),
+                q[1] + sigma * gaussian(&mut rng),
+            ]);
+        }
+        let t2 = 9.0;
+        let data = Data::new(&src, &dst, 3.0, &mut rng).unwrap().unwrap();
+        let ls = estimate(&src, &dst, Solver::NormalizedDlt, true).unwrap().h;
+        let e2: Vec<f64> = src
+            .iter()
+            .zip(&dst)
+            .map(|(p, q)| {
+                let r = project(&ls, p);
+                (r[0] - q[0]).powi(2) + (r[1] - q[1]).powi(2)
+            })
+            .collect();
+        let error = |h: &Matrix3<f64>| {
+            src.iter()
+                .map(|p| {
+                    let (a, b) = (project(h, p), project(&truth, p));
+                    (a[0] - b[0]).hypot(a[1] - b[1])
+                })
+                .sum::<f64>()
+                / src.len() as f64
+        };
+        match refit(&data, &ls, &e2, t2) {
+            Some(h) => (error(&ls), error(&h), true),
+            None => (error(&ls), error(&ls), false),
+        }
+    }
+
+    #[test]
+    fn gaussian_noise_keeps_the_least_squares_fit() {
+        let ran = (0..10).filter(|&seed| fits(seed, 0.0).2).count();
+        assert!(ran <= 1, "the kernel ran on {ran} of 10 Gaussian sets");
+    }
+
+    #[test]
+    fn a_heavy_tail_is_down_weighted() {
+        let (mut ls, mut robust) = (0.0, 0.0);
+        for seed in 0..10 {
+            let (a, b, ran) = fits(seed, 0.3);
+            assert!(ran, "seed {seed}: the kernel did not run");
+            (ls, robust) = (ls + a, robust + b);
+        }
+        assert!(robust < 0.95 * ls, "robust {robust} vs least squares {ls}");
+    }
+}
