@@ -97,10 +97,11 @@ impl Grid {
         })
     }
 
-    /// Calls `f` with the points in the cells within `reach` of point i's cell (3 x 3 for
-    /// reach 1; i included), at most `limit` of them.
+    /// Appends to `out` the points in the cells within `reach` of point i's cell (3 x 3 for
+    /// reach 1; i included), at most `limit` of them, row by row (whole runs of cells copied
+    /// at once).
     #[inline]
-    fn for_block(&self, i: usize, reach: usize, limit: usize, mut f: impl FnMut(u32)) {
+    fn extend_block(&self, i: usize, reach: usize, limit: usize, out: &mut Vec<u32>) {
         let (c, r) = self.cell[i];
         let (c, r) = (c as usize, r as usize);
         let (c0, c1) = (c.saturating_sub(reach), (c + reach + 1).min(self.cols));
@@ -108,11 +109,42 @@ impl Grid {
         for row in r.saturating_sub(reach)..(r + reach + 1).min(self.rows) {
             let (a, b) = (row * self.cols + c0, row * self.cols + c1);
             let (a, b) = (self.start[a] as usize, self.start[b] as usize);
-            for &j in &self.order[a..b.min(a.saturating_add(left))] {
-                f(j);
-            }
-            left -= (b - a).min(left);
+            let take = (b - a).min(left);
+            out.extend_from_slice(&self.order[a..a + take]);
+            left -= take;
         }
+    }
+
+    /// Point i's 3 x 3 block as runs of `order` (one per row), when it is neither sparse nor
+    /// crowded: then its points but i are exactly i's neighbours, and need no copying.
+    #[inline]
+    fn plain_block(&self, i: usize) -> Option<([(usize, usize); 3], usize)> {
+        let (c, r) = self.cell[i];
+        let (c, r) = (c as usize, r as usize);
+        let (c0, c1) = (c.saturating_sub(1), (c + 2).min(self.cols));
+        let mut runs = [(0, 0); 3];
+        let (mut rows, mut total) = (0, 0);
+        for row in r.saturating_sub(1)..(r + 2).min(self.rows) {
+            let (a, b) = (row * self.cols + c0, row * self.cols + c1);
+            let (a, b) = (self.start[a] as usize, self.start[b] as usize);
+            runs[rows] = (a, b);
+            rows += 1;
+            total += b - a;
+        }
+        // i is in its own block; the rest are its neighbours (fewer than MAX_NEIGHBOURS).
+        let others = total - 1;
+        ((SPARSE..=CROWDED).contains(&others)).then_some((runs, rows))
+    }
+
+    /// The points of runs (from `plain_block`).
+    #[inline]
+    fn runs<'a>(
+        &'a self,
+        (runs, rows): &'a ([(usize, usize); 3], usize),
+    ) -> impl Iterator<Item = u32> + 'a {
+        runs[..*rows]
+            .iter()
+            .flat_map(|&(a, b)| self.order[a..b].iter().copied())
     }
 
     /// Whether points i and j are in the same or adjacent cells.
@@ -135,11 +167,12 @@ fn neighbours(
 ) {
     for reach in 1..=MAX_REACH {
         out.clear();
-        grid.for_block(i, reach, MAX_NEIGHBOURS, |j| {
-            if j as usize != i {
-                out.push(j);
-            }
-        });
+        grid.extend_block(i, reach, MAX_NEIGHBOURS, out);
+        // Without i itself. The lists are used as sets (and the crowded cut below is by a
+        // total order), so the order this leaves does not matter.
+        if let Some(k) = out.iter().position(|&j| j as usize == i) {
+            out.swap_remove(k);
+        }
         if out.len() >= SPARSE {
             break;
         }
@@ -172,16 +205,30 @@ pub fn neighbourhood_scores(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Result<Vec<u3
     // cache.
     for &i in &gs.order {
         let i = i as usize;
-        neighbours(&gs, src, i, &mut near, &mut a);
-        neighbours(&gd, dst, i, &mut near, &mut b);
         let mark = i as u32 + 1;
-        for &j in &a {
-            stamp[j as usize] = mark;
+        // Where a block is plain (most are), its points are read in place.
+        if let Some(block) = gs.plain_block(i) {
+            for j in gs.runs(&block) {
+                stamp[j as usize] = mark;
+            }
+        } else {
+            neighbours(&gs, src, i, &mut near, &mut a);
+            for &j in &a {
+                stamp[j as usize] = mark;
+            }
         }
-        scores[i] = b
-            .iter()
-            .map(|&j| u32::from(stamp[j as usize] == mark))
-            .sum();
+        // i is stamped (in its own block) or not; either way it is not its own neighbour.
+        stamp[i] = 0;
+        scores[i] = if let Some(block) = gd.plain_block(i) {
+            gd.runs(&block)
+                .map(|j| u32::from(stamp[j as usize] == mark))
+                .sum()
+        } else {
+            neighbours(&gd, dst, i, &mut near, &mut b);
+            b.iter()
+                .map(|&j| u32::from(stamp[j as usize] == mark))
+                .sum()
+        };
     }
     Ok(scores)
 }
@@ -220,7 +267,7 @@ mod tests {
         let g = Grid::new(&pts, 0x9E37_79B1).unwrap();
         for i in [0, 17, 399] {
             let mut got = Vec::new();
-            g.for_block(i, 1, usize::MAX, |j| got.push(j));
+            g.extend_block(i, 1, usize::MAX, &mut got);
             got.sort_unstable();
             let want: Vec<u32> = (0..pts.len() as u32)
                 .filter(|&j| g.adjacent(i, j as usize))
