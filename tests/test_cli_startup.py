@@ -6,7 +6,9 @@ in benches/bench_startup.py."""
 from __future__ import annotations
 
 import ast
+import importlib.metadata
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -63,7 +65,8 @@ def test_help_and_version_as_a_user_runs_them() -> None:
     assert result.returncode == 0 and result.stdout == f"planarcal {planarcal.__version__}\n"
     result = _run("--help")
     assert result.returncode == 0
-    for command in ("board", "calibrate", "intrinsics", "register", "locate", "run", "demo"):
+    commands = ("board", "calibrate", "intrinsics", "register", "locate", "run", "live", "demo")
+    for command in commands:
         assert f"    {command}" in result.stdout
     # A command's own help lists its arguments, loaded for it.
     for command, option in (("calibrate", "--measured-pitch"), ("register", "--drop-outliers")):
@@ -109,3 +112,11 @@ def test_subpackages_still_come_with_the_package() -> None:
         "import planarcal\nassert planarcal.synth.paper_scene\nassert planarcal.robot.RobotFrame"
     )
     assert "planarcal.synth" in loaded
+
+
+def test_the_version_is_written_in_one_place() -> None:
+    """The wheel's metadata and planarcal.__version__ are both the Cargo workspace's."""
+    cargo = Path(__file__).parents[1] / "Cargo.toml"
+    written = re.search(r'^version = "([^"]+)"', cargo.read_text(), re.M)
+    assert written is not None
+    assert importlib.metadata.version("planarcal") == planarcal.__version__ == written[1]
