@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from planarcal.calib.calibration import Calibration, CalibrationSummary
 from planarcal.calib.coverage import calibration_coverage
+from planarcal.calib.json_number import json_ready
 from planarcal.calib.placements import Placement
 from planarcal.report.drawing import dot_flags, homography_residual_note
 from planarcal.report.fits import fitted_parameters, homography_alone
@@ -96,7 +97,7 @@ def summary_json(
         out["placements"] = [_placement_json(p) for p in cal.placements]
     if detection is not None:
         out["detection"] = _detection_json(detection)
-    return {k: _finite_or_none(v) for k, v in out.items()}
+    return {k: json_ready(v) for k, v in out.items()}
 
 
 def _placement_json(p: Placement) -> dict[str, Any]:
@@ -215,18 +216,6 @@ def _orientation(detection: Any) -> str | None:
 def _warnings(detection: Any) -> tuple[str, ...] | None:
     warnings = getattr(detection, "warnings", None)
     return None if warnings is None else tuple(str(w) for w in warnings)
-
-
-def _finite_or_none(v: Any) -> Any:
-    """`v` with every non-finite float in it (nested in dicts, lists and tuples) as None,
-    and numpy numbers as Python ones."""
-    if isinstance(v, dict):
-        return {k: _finite_or_none(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_finite_or_none(x) for x in v]
-    if isinstance(v, np.generic):
-        v = v.item()
-    return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
 def _ratio(a: float, b: float) -> float:

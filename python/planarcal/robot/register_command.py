@@ -17,12 +17,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import math
 import sys
 from pathlib import Path
 from typing import Any
 
 from planarcal.calib.calibration import Calibration
+from planarcal.calib.json_number import json_ready
 from planarcal.commands import positive
 from planarcal.robot.handedness import HANDEDNESS, Handedness
 from planarcal.robot.registration import RobotFrame
@@ -182,7 +182,7 @@ def main(args: argparse.Namespace) -> int:
             "written": saved is not None,
             "refused": refusal,
             "replaced_registration": cal.robot_frame is not None and saved is not None,
-            "registration": _json_ready(frame.to_dict()),
+            "registration": json_ready(frame.to_dict()),
         }
         print(json.dumps(out, allow_nan=False))
     else:
@@ -214,14 +214,3 @@ def _refusal(frame: RobotFrame, touches: TouchPoints, points_file: str, force: b
             "mm); check the pairing and touch again, or give --force to write it all the same"
         )
     return None
-
-
-def _json_ready(value: Any) -> Any:
-    """value with non-finite floats as None (JSON has no inf or NaN)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _json_ready(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_json_ready(v) for v in value]
-    return value

@@ -35,6 +35,7 @@ from planarcal.calib.calibration import Calibration
 from planarcal.calib.coverage import Coverage, calibration_coverage
 from planarcal.calib.detection import BoardDetection
 from planarcal.calib.extrapolation import convex_hull
+from planarcal.calib.json_number import json_ready
 from planarcal.calib.object_settings import ObjectSettings
 from planarcal.commands.calibrate import detect_image, fit_calibration
 from planarcal.errors import (
@@ -286,13 +287,18 @@ class LiveSession:
         if self.output is not None:
             self.output.close()
 
-    def _analyse_loop(self) -> None:
+    def _new_frames(self) -> Iterator[Frame]:
+        """Each frame newer than the one before, until the session closes (frames that came
+        meanwhile are skipped: the newest is what the page must show)."""
         last = 0
         while not self._stop.is_set():
             frame = self.pump.newest(last, timeout_s=0.5)
-            if frame is None:
-                continue
-            last = frame.number
+            if frame is not None:
+                last = frame.number
+                yield frame
+
+    def _analyse_loop(self) -> None:
+        for frame in self._new_frames():
             try:
                 analysis = self._analyse(frame)
             except Exception as e:  # the page shows it; the loop goes on
@@ -347,12 +353,7 @@ class LiveSession:
             return self._tracker
 
     def _display_loop(self) -> None:
-        last = 0
-        while not self._stop.is_set():
-            frame = self.pump.newest(last, timeout_s=0.5)
-            if frame is None:
-                continue
-            last = frame.number
+        for frame in self._new_frames():
             data = overlay.jpeg(self._drawn(frame))
             with self._shown:
                 self._jpeg = (frame.number, data)
@@ -735,7 +736,7 @@ class LiveSession:
 
     def state(self) -> dict[str, Any]:
         with self._state:
-            out: dict[str, Any] = _json_ready(self._state_now())
+            out: dict[str, Any] = json_ready(self._state_now())
             return out
 
     def _state_now(self) -> dict[str, Any]:
@@ -879,17 +880,3 @@ def _number(name: str, value: Any) -> float:
 
 def _ms(seconds: float | None) -> float | None:
     return None if seconds is None else 1000.0 * seconds
-
-
-def _json_ready(value: Any) -> Any:
-    """``value`` with non-finite floats as None and numpy scalars as Python's (JSON has no
-    inf or NaN)."""
-    if isinstance(value, dict):
-        return {k: _json_ready(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
