@@ -50,9 +50,10 @@ def test_a_result_survives_pickling() -> None:
             assert back.H is not None
             np.testing.assert_array_equal(back.H, r.H)
         np.testing.assert_array_equal(back.inliers, r.inliers)
-        assert (back.stop_reason, back.local_optimizations) == (
+        assert (back.stop_reason, back.local_optimizations, back.poorly_constrained) == (
             r.stop_reason,
             r.local_optimizations,
+            r.poorly_constrained,
         )
 
 
@@ -60,6 +61,8 @@ def test_the_constructor_takes_the_fields_and_checks_the_stop_reason() -> None:
     inliers = np.zeros(5, bool)
     r = RobustResult(None, inliers, 0, 7, "no_consensus", float("nan"), 3.0, 0)
     assert not r.success and r.inlier_ratio == 0.0 and r.iterations == 7
+    assert not r.poorly_constrained
+    assert RobustResult(None, inliers, 0, 7, "no_consensus", 0.0, 3.0, 0, True).poorly_constrained
     with pytest.raises(planarcal.ArgumentError, match="stop_reason must be"):
         RobustResult(None, inliers, 0, 7, "gave_up", 0.0, 3.0, 0)  # type: ignore[arg-type]
 
@@ -95,3 +98,28 @@ def test_options_are_checked_before_the_points_and_for_an_empty_batch(
         planarcal.estimate_homography_robust(SRC[:3], DST[:3], **kwargs)  # type: ignore[arg-type]
     with pytest.raises(planarcal.ArgumentError, match=match):
         planarcal.estimate_homography_robust_batch([], **kwargs)  # type: ignore[arg-type]
+
+
+def test_a_model_resting_on_a_small_patch_is_flagged() -> None:
+    rng = np.random.default_rng(11)
+    H = np.array([[1.1, 0.05, 20.0], [-0.04, 0.95, -10.0], [1e-5, -2e-5, 1.0]])
+
+    def problem(patch: float) -> tuple[np.ndarray, np.ndarray]:
+        # 60 inliers over a patch x patch square of a 1280 x 720 image; 40 outliers everywhere.
+        src = np.vstack(
+            [rng.uniform(600, 600 + patch, (60, 2)), rng.uniform(0, 1, (40, 2)) * (1280, 720)]
+        )
+        w = src @ H[2, :2] + H[2, 2]
+        dst = (src @ H[:2, :2].T + H[:2, 2]) / w[:, None] + rng.normal(0, 0.2, src.shape)
+        dst[60:] = rng.uniform(0, 1, (40, 2)) * (1280, 720)
+        return src, dst
+
+    spread = planarcal.estimate_homography_robust(*problem(700.0))
+    assert spread.success and spread.n_inliers >= 60 and not spread.poorly_constrained
+    patch = planarcal.estimate_homography_robust(*problem(40.0))
+    assert patch.success and patch.n_inliers >= 60 and patch.poorly_constrained
+    # A model on fewer than 10 inliers is flagged however they spread; 10 are enough.
+    few = planarcal.estimate_homography_robust(SRC[10:19], DST[10:19])
+    assert few.success and few.n_inliers == 9 and few.poorly_constrained
+    ten = planarcal.estimate_homography_robust(SRC[10:20], DST[10:20])
+    assert ten.success and ten.n_inliers == 10 and not ten.poorly_constrained

@@ -50,6 +50,10 @@ pub struct RobustResult {
     /// New best models that were locally optimised.
     #[pyo3(get)]
     local_optimizations: usize,
+    /// The model rests on little: fewer than 10 inliers, or inliers along a line or in a
+    /// small patch of the points' spread; H fits them but may be far off elsewhere.
+    #[pyo3(get)]
+    poorly_constrained: bool,
     /// Correspondences: the length of ``inliers``.
     n: usize,
 }
@@ -66,6 +70,7 @@ impl RobustResult {
             rms_inlier_error: r.rms_inlier_error,
             threshold: r.threshold,
             local_optimizations: r.lo_runs,
+            poorly_constrained: r.poorly_constrained,
         }
     }
 }
@@ -97,7 +102,7 @@ fn short(py: Python<'_>, value: f64) -> PyResult<String> {
 impl RobustResult {
     #[new]
     #[pyo3(signature = (H, inliers, n_inliers, iterations, stop_reason, rms_inlier_error,
-        threshold, local_optimizations))]
+        threshold, local_optimizations, poorly_constrained=false))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn py_new(
         H: Option<Bound<'_, PyArray2<f64>>>,
@@ -108,6 +113,7 @@ impl RobustResult {
         rms_inlier_error: f64,
         threshold: f64,
         local_optimizations: usize,
+        poorly_constrained: bool,
     ) -> PyResult<Self> {
         Ok(RobustResult {
             h: H.map(Bound::unbind),
@@ -119,6 +125,7 @@ impl RobustResult {
             rms_inlier_error,
             threshold,
             local_optimizations,
+            poorly_constrained,
         })
     }
 
@@ -176,6 +183,7 @@ impl RobustResult {
             r.rms_inlier_error,
             r.threshold,
             r.local_optimizations,
+            r.poorly_constrained,
         );
         Ok((slf.get_type(), args.into_pyobject(py)?))
     }

@@ -133,6 +133,10 @@ pub struct RobustResult {
     pub threshold: f64,
     /// Local optimisations run.
     pub lo_runs: usize,
+    /// The model rests on little: few inliers (under WEAK_INLIERS), or inliers on a line or
+    /// in a small patch of the source points' spread (see `poorly_constrained`). H fits them,
+    /// but may be far off elsewhere. False without H.
+    pub poorly_constrained: bool,
 }
 
 impl RobustResult {
@@ -146,6 +150,7 @@ impl RobustResult {
             rms_inlier_error: f64::NAN,
             threshold,
             lo_runs,
+            poorly_constrained: false,
         })
     }
 }
@@ -862,6 +867,7 @@ fn finish(
         .filter(|(_, &b)| b)
         .map(|(v, _)| v)
         .sum();
+    let poorly_constrained = poorly_constrained(data, &inliers, n_inliers);
     Ok(RobustResult {
         h: Some(h),
         inliers,
@@ -871,7 +877,49 @@ fn finish(
         rms_inlier_error: (sum_sq / n_inliers as f64).sqrt(),
         threshold,
         lo_runs: search.lo_runs,
+        poorly_constrained,
     })
+}
+
+/// Fewer inliers than this constrain a homography (8 parameters) by little more than a
+/// minimal sample: noise in any of them moves H far from them.
+const WEAK_INLIERS: usize = 10;
+/// Inliers on a line: the smaller axis of their spread (standard deviation) under this
+/// fraction of the larger.
+const LINE_RATIO: f64 = 0.05;
+/// Inliers in a small patch: the area of their spread under this fraction of all the source
+/// points' spread.
+const PATCH_AREA: f64 = 0.01;
+
+/// Whether the inliers fix H poorly: few of them, or their sources (normalised, where all the
+/// points' spread has unit variance per axis on average) along a line or bunched in a small
+/// patch, so that H is extrapolated over most of the image.
+fn poorly_constrained(data: &Data, inliers: &[bool], n_inliers: usize) -> bool {
+    if n_inliers < WEAK_INLIERS {
+        return true;
+    }
+    let m = n_inliers as f64;
+    let (mut sx, mut sy) = (0.0, 0.0);
+    for (p, _) in data.src.iter().zip(inliers).filter(|(_, &b)| b) {
+        sx += p[0];
+        sy += p[1];
+    }
+    let (mx, my) = (sx / m, sy / m);
+    let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
+    for (p, _) in data.src.iter().zip(inliers).filter(|(_, &b)| b) {
+        let (dx, dy) = (p[0] - mx, p[1] - my);
+        xx += dx * dx;
+        xy += dx * dy;
+        yy += dy * dy;
+    }
+    let (xx, xy, yy) = (xx / m, xy / m, yy / m);
+    // Eigenvalues of the 2 x 2 covariance.
+    let half_trace = 0.5 * (xx + yy);
+    let root = (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
+    let (major, minor) = (half_trace + root, (half_trace - root).max(0.0));
+    // All points' normalised spread: mean squared distance 2 from the centroid, so about
+    // unit variance per axis; the inliers' area relative to it is sqrt(major * minor).
+    minor < LINE_RATIO * LINE_RATIO * major || (major * minor).sqrt() < PATCH_AREA
 }
 
 #[cfg(test)]
