@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 from planarcal.errors import ArgumentError, HomographyError, ImageError
 from planarcal.homography import estimate_homography, transform_points
 from planarcal.images import as_grey
+from planarcal.report.labels import Box, Layout, Style, around, point_box, text_height
 from planarcal.report.mapping import masked
 from planarcal.report.point_names import (
     detection_ids,
@@ -135,6 +136,7 @@ def draw_detection(
     *,
     residual_note: str | None = None,
     calibration: Any = None,
+    text_boxes: list[Box] | None = None,
 ) -> U8:
     """The image with every point found marked and labelled with its id (a grid board's
     k = row x cols + col, 0 the origin: the numbering of the CSV files, the API and the
@@ -143,7 +145,10 @@ def draw_detection(
     ring) and the lines of `detection_label` (`residual_note`: which model the residual
     quoted comes from). For a partial view, the board's other points in the image are drawn
     where the fit through the points seen puts them (orange diamonds, unlabelled: not seen):
-    `calibration`'s (with its lens model) when given, else a homography through the points."""
+    `calibration`'s (with its lens model) when given, else a homography through the points.
+    Every text is sized to the image and placed where it overlaps no other text and covers
+    no point (a point's label that finds no room is left out, and the caption says how
+    many are); `text_boxes`, when given, receives the boxes of the texts written."""
     canvas = _canvas(image)
     s = _scale(canvas)
     board = detection.board
@@ -179,19 +184,10 @@ def draw_detection(
             max(1, int(s)),
             cv2.LINE_AA,
         )
-    for k, p in zip(ids, pts, strict=True):
+    for p in pts:
         cv2.circle(canvas, ip(p), int(radius * f), (0, 0, 255), max(1, int(s)), cv2.LINE_AA, shift)
-        cv2.putText(
-            canvas,
-            str(int(k)),
-            (int(p[0] + radius), int(p[1] - radius)),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.35 * s,
-            (0, 200, 0),
-            max(1, int(s)),
-            cv2.LINE_AA,
-        )
     axes = _axes_px(board, ids, pts, project)
+    tips: list[tuple[F64, F64, str, tuple[int, int, int]]] = []
     if axes is not None:
         origin, x_end, y_end = axes
         for end, label, colour in ((x_end, "X", (0, 0, 255)), (y_end, "Y", (0, 160, 0))):
@@ -199,21 +195,85 @@ def draw_detection(
             cv2.arrowedLine(
                 canvas, ip(origin), ip(tip), colour, max(2, int(2 * s)), cv2.LINE_AA, shift, 0.2
             )
-            cv2.putText(
-                canvas,
-                label,
-                (int(tip[0] + 4), int(tip[1] + 4)),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.7 * s,
-                colour,
-                max(2, int(2 * s)),
-                cv2.LINE_AA,
-            )
+            tips.append((origin, tip, label, colour))
     _mark_flagged_dots(canvas, detection, s)
+    layout = Layout(canvas)
+    layout.reserve(point_box(x, y, radius) for x, y in pts)
+    header = Style(text_height(canvas.shape))
     caption = detection_label(detection, residual_note, not_seen_drawn=len(not_seen))
-    for k, text in enumerate(_fitting_lines(caption, canvas.shape[1] - 20, s)):
-        _label(canvas, text, (10, int((25 + 20 * k) * s)), s)
+    block = layout.block(caption, header, pts)
+    for origin, tip, label, colour in tips:
+        _place_axis_letter(layout, origin, tip, label, colour)
+    small = Style(text_height(canvas.shape, small=True), colour=(0, 130, 0))
+    shown = _label_points(layout, small, board, ids, pts, radius)
+    if shown < len(ids):
+        note = (
+            f"{shown} of the {len(ids)} {plural(point_name(board), len(ids))} labelled: "
+            "the others' labels would overlap"
+        )
+        below = block[-1].y1 + round(1.5 * header.height) if block else round(2 * header.height)
+        margin = max(2, round(0.4 * header.height)) + header.pad
+        layout.place(
+            note,
+            header,
+            [(margin, below), (margin, layout.height - margin - header.pad)],
+            check_reserved=False,
+        )
+    boxes = layout.finish()
+    if text_boxes is not None:
+        text_boxes.extend(boxes)
     return canvas
+
+
+def _place_axis_letter(
+    layout: Layout, origin: F64, tip: F64, label: str, colour: tuple[int, int, int]
+) -> None:
+    """The axis letter beyond the arrow's tip, or a little farther out along it, where it
+    covers no text and no point."""
+    style = Style(1.6 * text_height(layout.canvas.shape, small=True), colour=colour, bold=True)
+    w, h, _ = style.size(label)
+    d = tip - origin
+    d = d / max(float(np.hypot(*d)), 1e-9)
+    for reach in (0.6, 1.2, 2.0, 3.0):
+        centre = tip + reach * max(w, h) * d
+        origins = [(round(centre[0] - w / 2), round(centre[1] + h / 2))]
+        origins += around(float(centre[0]), float(centre[1]), 0.3 * h, w, h)
+        if layout.place(label, style, origins) is not None:
+            return
+
+
+def _label_order(board: Any, ids: NDArray[np.intp]) -> NDArray[np.intp]:
+    """The order in which points are offered a label: on a grid, the coarsest sub-grid first
+    (rows and columns divisible by the highest power of two), so that where labels must be
+    thinned those left form an even lattice; else by id."""
+    shape = grid_shape(board)
+    if shape is None:
+        return np.argsort(ids, kind="stable")
+    rows, cols = np.divmod(ids, max(shape[0], 1))
+
+    def twos(v: NDArray[np.intp]) -> NDArray[np.intp]:
+        out = np.zeros(len(v), dtype=np.intp)
+        for k in range(1, 20):
+            out += (v % (1 << k) == 0).astype(np.intp)
+        return out
+
+    level = np.minimum(twos(rows), twos(cols))
+    return np.lexsort((ids, -level))
+
+
+def _label_points(
+    layout: Layout, style: Style, board: Any, ids: NDArray[np.intp], pts: F64, radius: float
+) -> int:
+    """Each point's id beside it where it has room (up and right as always, else on another
+    side); how many were written."""
+    shown = 0
+    for j in _label_order(board, ids):
+        text = str(int(ids[j]))
+        w, h, _ = style.size(text)
+        x, y = float(pts[j][0]), float(pts[j][1])
+        if layout.place(text, style, around(x, y, radius + style.pad, w, h)) is not None:
+            shown += 1
+    return shown
 
 
 def _pitch_px(detection: Any) -> float:
@@ -344,38 +404,29 @@ def _mark_flagged_dots(canvas: U8, detection: Any, s: float) -> None:
             )
 
 
-def _fitting_lines(lines: list[str], width: int, s: float) -> list[str]:
-    """The lines, each too wide for the image split after its "; " (a long residual note
-    names two models: one per line then)."""
-    out = []
-    for line in lines:
-        if _text_width(line, s) <= width or "; " not in line:
-            out.append(line)
-        else:
-            head, tail = line.split("; ", 1)
-            out += [head + ";", *_fitting_lines(["  " + tail], width, s)]
-    return out
-
-
-def _text_width(text: str, s: float) -> int:
-    (w, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5 * s, max(1, int(s)))
-    return int(w)
-
-
 # The colour (BGR) of a part's axis.
 AXIS_BGR = (255, 0, 200)
 
 
-def draw_objects(image: Any, objects: Sequence[Any], title: str | None = None) -> U8:
+def draw_objects(
+    image: Any,
+    objects: Sequence[Any],
+    title: str | None = None,
+    *,
+    text_boxes: list[Box] | None = None,
+) -> U8:
     """The image with each object's outline, centroid, ID and (when located) its position in
     mm, and, where it has one, its axis: a line through the centroid along the image
     direction of its principal axis (``axis_px``), a little longer than the part, and its
     angle (``angle_deg``, in the frame of its position) in the label. ``title``, written in
-    the top-left corner, says what the numbers are (which frame the mm are in)."""
+    the top-left corner, says what the numbers are (which frame the mm are in).
+
+    Labels cover no part and no other label: each goes beside its part, else farther out
+    with a leader line to its centroid, else the part is marked with its ID alone and its
+    numbers listed in a legend where there is room. `text_boxes`, when given, receives the
+    boxes of the texts written."""
     canvas = _canvas(image)
     s = _scale(canvas)
-    if title:
-        _label(canvas, title, (int(8 * s), int(22 * s)), s)
     for o in objects:
         contour = np.rint(o.contour_px).astype(np.int32).reshape(-1, 1, 2)
         cv2.drawContours(canvas, [contour], -1, (0, 200, 255), max(1, int(s)), cv2.LINE_AA)
@@ -392,15 +443,110 @@ def draw_objects(image: Any, objects: Sequence[Any], title: str | None = None) -
             max(1, int(s)),
             cv2.LINE_AA,
         )
-        text = f"ID:{o.id}"
-        if o.world_mm is not None:
-            text += f" ({o.world_mm[0]:.1f}, {o.world_mm[1]:.1f}) mm"
-        angle = getattr(o, "angle_deg", None)
-        if angle is not None:
-            text += f" {angle:.1f} deg"
-        x, y, _, _ = o.bbox_px
-        _label(canvas, text, (x, max(int(15 * s), y - int(6 * s))), s)
+    layout = Layout(canvas)
+    header = Style(text_height(canvas.shape))
+    if title:
+        outlines = [np.asarray(o.contour_px, dtype=np.float64).reshape(-1, 2) for o in objects]
+        layout.block([title], header, np.concatenate([np.zeros((0, 2)), *outlines]))
+    layout.reserve(_part_box(o) for o in objects)
+    style = Style(text_height(canvas.shape, small=True) * 1.2)
+    legend: list[str] = []
+    order = sorted(objects, key=lambda o: (o.centroid_px[1], o.centroid_px[0]))
+    # Every part's full label beside it where there is room, then, for those left, farther
+    # out on a leader line, then their ID alone (their numbers in the legend).
+    left = [o for o in order if not _place_part_label(layout, style, _object_text(o), o, 0)]
+    left = [o for o in left if not _place_part_label(layout, style, _object_text(o), o, 3)]
+    for o in left:
+        if _place_part_label(layout, style, f"{o.id}", o, 4):
+            legend.append(_object_text(o))
+    _legend(layout, style, legend)
+    boxes = layout.finish()
+    if text_boxes is not None:
+        text_boxes.extend(boxes)
     return canvas
+
+
+def _object_text(o: Any) -> str:
+    text = f"ID:{o.id}"
+    if o.world_mm is not None:
+        text += f" ({o.world_mm[0]:.1f}, {o.world_mm[1]:.1f}) mm"
+    angle = getattr(o, "angle_deg", None)
+    if angle is not None:
+        text += f" {angle:.1f} deg"
+    return text
+
+
+def _part_box(o: Any) -> Box:
+    """The part's outline's bounding box (px), which no label may cover."""
+    c = np.asarray(o.contour_px, dtype=np.float64).reshape(-1, 2)
+    if not len(c):
+        x, y = o.centroid_px
+        return Box(round(x) - 7, round(y) - 7, round(x) + 8, round(y) + 8)
+    lo, hi = np.floor(c.min(axis=0)), np.ceil(c.max(axis=0))
+    return Box(int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1)
+
+
+def _place_part_label(layout: Layout, style: Style, text: str, o: Any, rings: int) -> bool:
+    """The part's label just above or below it, else beside it, else (`rings` > 0) farther
+    out on up to `rings` rings of places round it with a leader line to its centroid;
+    False when there is no room."""
+    part = _part_box(o)
+    w, h, base = style.size(text)
+    p = style.pad
+    near = [
+        (part.x0 + p, part.y0 - base - p - 1),
+        (part.x0 + p, part.y1 + h + p + 1),
+        (part.x1 + p + 1, (part.y0 + part.y1 + h) // 2),
+        (part.x0 - w - p - 1, (part.y0 + part.y1 + h) // 2),
+    ]
+    if layout.place(text, style, near) is not None:
+        return True
+    cx, cy = (float(v) for v in o.centroid_px)
+    size = max(part.x1 - part.x0, part.y1 - part.y0)
+    for ring in range(1, rings + 1):
+        reach = 0.5 * size + ring * 1.6 * (h + base + 2 * p)
+        for k in range(16):
+            a = 2 * math.pi * k / 16
+            bx, by = cx + reach * math.cos(a), cy + reach * math.sin(a)
+            org = (round(bx - w / 2), round(by + h / 2))
+            box = layout.box_at(text, style, org)
+            if layout.free(box):
+                ex = min(max(cx, box.x0), box.x1 - 1)
+                ey = min(max(cy, box.y0), box.y1 - 1)
+                thick = max(1, round(style.height / 12))
+                layout.leader((round(ex), round(ey)), (round(cx), round(cy)), thick)
+                layout.draw(text, style, org, box)
+                return True
+    return False
+
+
+def _legend(layout: Layout, style: Style, lines: list[str]) -> None:
+    """The numbers of the parts marked with their ID alone, one line each, stacked from the
+    image's bottom-right corner up and leftwards where they cover no part and no text; the
+    last line says how many found no room."""
+    if not lines:
+        return
+    step = round(1.5 * style.height) + 2 * style.pad
+    margin = max(2, round(0.4 * style.height)) + style.pad
+    widest = max(style.size(t)[0] for t in lines) + 2 * style.pad
+    columns = range(layout.width - margin - widest, margin - 1, -(widest + margin))
+    rows = range(layout.height - margin, margin + step - 1, -step)
+    slots = [(x, y) for x in columns for y in rows]
+    left = list(lines)
+    while left and slots:
+        text = left[0]
+        for j, org in enumerate(slots):
+            box = layout.box_at(text, style, org)
+            if layout.free(box):
+                layout.draw(text, style, org, box)
+                left.pop(0)
+                slots = slots[j + 1 :]
+                break
+        else:
+            break
+    if left:
+        note = f"{len(left)} more parts: see the positions file"
+        layout.place(note, style, slots)
 
 
 def _draw_axis(
@@ -426,17 +572,6 @@ def _draw_axis(
         max(1, int(s)),
         cv2.LINE_AA,
         4,
-    )
-
-
-def _label(canvas: U8, text: str, org: tuple[int, int], s: float) -> None:
-    scale = 0.5 * s
-    thick = max(1, int(s))
-    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
-    x, y = org
-    cv2.rectangle(canvas, (x - 2, y - th - 3), (x + tw + 2, y + base), (255, 255, 255), -1)
-    cv2.putText(
-        canvas, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), thick, cv2.LINE_AA
     )
 
 
