@@ -27,6 +27,7 @@ from planarcal.homography import SOLVERS, Solver
 from planarcal.images import load_image
 from planarcal.live.capture import Camera
 from planarcal.live.capture_sources import open_path
+from planarcal.progress import progress
 from planarcal.report import summary_json, summary_text, write_detection_failure, write_report
 from planarcal.report.figure import require_matplotlib
 from planarcal.report.printable import CHECK_BAR_MM
@@ -298,30 +299,28 @@ def _detect(
     search saw where the board was not found is drawn before the error propagates."""
     detections: list[Any] = []
     shown: list[Any] = []  # each detection's image
-    if args.copies:
-        found_names: list[str] = []
-        for k, image in enumerate(images):
-            try:
+    found_names: list[str] = []
+    reference = 0 if args.copies else _origin(args, len(images))
+    k = 0
+    try:
+        for k, image in enumerate(progress(images, desc="Finding the board", unit="image")):
+            if args.copies:
                 found, called = detect_copies(image, board, k, names[k], options)
-            except BoardNotFoundError as e:
-                _draw_failure(args, image, e)
-                raise
-            detections += found
-            shown += [image] * len(found)
-            found_names += called
-        names = found_names
-        reference = _origin(args, len(detections))
-    else:
-        reference = _origin(args, len(images))
-        for k, image in enumerate(images):
-            try:
+                detections += found
+                shown += [image] * len(found)
+                found_names += called
+            else:
                 detections.append(
                     detect_image(image, board, k, len(images), reference, names[k], options)
                 )
-            except BoardNotFoundError as e:
-                _draw_failure(args, image, e)
-                raise
-        shown = images
+                shown.append(image)
+    except BoardNotFoundError as e:
+        # Drawn once the loop has ended and its bar is erased: the message gets its own line.
+        _draw_failure(args, images[k], e)
+        raise
+    if args.copies:
+        names = found_names
+        reference = _origin(args, len(detections))
     return detections, shown, names, reference
 
 
@@ -375,7 +374,8 @@ def still_average(camera: Camera, n: int) -> NDArray[np.float32]:
     first: NDArray[np.uint8] | None = None
     total: NDArray[np.float64] | None = None
     moved: list[tuple[int, float]] = []
-    for k, frame in enumerate(camera.frames(n), start=1):
+    frames = progress(camera.frames(n), desc="Averaging frames", total=n, unit="frame")
+    for k, frame in enumerate(frames, start=1):
         if first is None or total is None:
             first, total = frame, frame.astype(np.float64)
             continue
