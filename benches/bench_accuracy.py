@@ -62,6 +62,7 @@ from planarcal.calib.calibration import Calibration
 from planarcal.calib.detect import detect_board
 from planarcal.camera import calibrate_camera
 from planarcal.live.objects import locate_objects
+from planarcal.progress import note, progress
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 REAL = SHARED / "data" / "real" / "boofcv-circle-regular"
@@ -75,7 +76,7 @@ def rendered(n: int) -> tuple[list[list[str]], dict[str, float]]:
     rows = []
     errs: dict[str, list[float]] = {"paper": [], "plain": [], "lens": [], "ratio": []}
     models: list[str] = []
-    for seed in range(n):
+    for seed in progress(range(n), desc="Rendered scenes", unit="scene"):
         scene = synth.random_paper_scene(1000 + seed)
         det = detect_board(scene.image, board)
         truth = rng.uniform(0.0, 1.0, (2000, 2)) * span
@@ -108,7 +109,7 @@ def rendered(n: int) -> tuple[list[list[str]], dict[str, float]]:
                 f"{ratio:.2f}",
             ]
         )
-        print(" ".join(rows[-1]), file=sys.stderr, flush=True)
+        note(" ".join(rows[-1]))  # above the bar
     summary = {
         "paper": float(np.mean(errs["paper"])),
         "plain": float(np.mean(errs["plain"])),
@@ -150,7 +151,7 @@ def heights(n: int) -> tuple[list[list[str]], float]:
     for height in (10.0, 20.0):
         with_h: list[float] = []
         without: list[float] = []
-        for seed in range(n):
+        for seed in progress(range(n), desc=f"Raised parts, {height:g} mm", unit="scene"):
             calib = synth.random_paper_scene(1000 + seed)
             cal = Calibration.from_detection(detect_board(calib.image, board), intrinsics=cam)
             objects = [
@@ -248,7 +249,7 @@ def error_bars(n: int, md: bool) -> bool:
     lo, hi = ERROR_BAR_BAND
     for family, pairs in families.items():
         results = []
-        for name, pair in pairs:
+        for name, pair in progress(pairs, desc=family, unit="scene"):
             r = measure_pair(name, pair, rng)
             results.append(r)
             row = [
@@ -267,7 +268,7 @@ def error_bars(n: int, md: bool) -> bool:
                 _ratio_text(r.robot_parts),
             ]
             rows.append(row)
-            print(" ".join(row), file=sys.stderr, flush=True)
+            note(" ".join(row))  # above the bar
         board = Errors.pooled([r.board for r in results])
         parts = Errors.pooled([r.parts for r in results])
         robot = Errors.pooled([r.robot_parts for r in results])
@@ -337,7 +338,7 @@ def robot_cells(n: int, md: bool) -> bool:
     rows = []
     named, worst_mm, worst_deg, round_ok = 0, 0.0, 0.0, True
     actual, predicted = [], []
-    for seed in range(n):
+    for seed in progress(range(n), desc="Robot cells", unit="cell"):
         r = run_cell(seed)
         named += r.wrong_touch_named
         worst_mm = max(worst_mm, float(r.position_err_mm.max()))
@@ -357,7 +358,7 @@ def robot_cells(n: int, md: bool) -> bool:
                 f"{r.round_parts_without_angle}/{r.round_parts}",
             ]
         )
-        print(" ".join(rows[-1]), file=sys.stderr, flush=True)
+        note(" ".join(rows[-1]))  # above the bar
     print(
         "Simulated robot cells: parts in the robot frame after calibration and registration "
         "(six touches, 0.05 mm noise, one on the wrong dot)"

@@ -53,6 +53,7 @@ sys.path.insert(0, str(TESTS))
 from reporting import cpu_model, load_average, table_lines  # noqa: E402
 
 from fuzz_inputs import ENTRIES, NUMERIC_ENTRIES, SESSION_ENTRIES, Tally, judge  # noqa: E402
+from planarcal.progress import counter, note  # noqa: E402
 
 NUMERIC_UNIT = 5000
 FILE_UNIT = 100
@@ -161,18 +162,22 @@ class Campaign:
         outstanding = len(pending)
         started = time.perf_counter()
         workers = [self._start(tasks, results, k) for k in range(self.args.workers)]
-        while outstanding:
-            if not results.empty():
-                u, tally, rss = results.get()
-                report.tally.merge(tally)
-                report.peak_rss_kib = max(report.peak_rss_kib, rss)
-                outstanding -= 1
-                continue
-            time.sleep(0.2)
-            for k, w in enumerate(workers):
-                outstanding += self._watch(entry, w, tasks, report)
-                if not w[0].is_alive():
-                    workers[k] = self._start(tasks, results, k)
+        # The inputs judged so far (a unit's when it reports, a crash's or hang's at once).
+        with counter(desc=f"  {entry}", total=count, unit="input") as bar:
+            while outstanding:
+                judged = report.tally.inputs
+                if not results.empty():
+                    u, tally, rss = results.get()
+                    report.tally.merge(tally)
+                    report.peak_rss_kib = max(report.peak_rss_kib, rss)
+                    outstanding -= 1
+                else:
+                    time.sleep(0.2)
+                    for k, w in enumerate(workers):
+                        outstanding += self._watch(entry, w, tasks, report)
+                        if not w[0].is_alive():
+                            workers[k] = self._start(tasks, results, k)
+                bar.update(report.tally.inputs - judged)
         for _ in workers:
             tasks.put(None)
         for w in workers:
@@ -219,7 +224,7 @@ class Campaign:
         tail = Path(log).read_text(errors="replace")[-3000:]
         path = write_reproducer(self.findings, entry, self.args.seed, index, what)
         path.with_suffix(".log").write_text(tail)
-        print(f"  {entry} case {index}: {what} -> {path}", flush=True)
+        note(f"  {entry} case {index}: {what} -> {path}", stream=sys.stdout)  # above the bar
         # The unit that held the case goes back to the queue without it.
         again = [Unit(entry, start, index), Unit(entry, index + 1, stop)]
         added = 0
