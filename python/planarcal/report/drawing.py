@@ -205,12 +205,17 @@ def draw_detection(
     for origin, tip, label, colour in tips:
         _place_axis_letter(layout, origin, tip, label, colour)
     small = Style(text_height(canvas.shape, small=True), colour=(0, 130, 0))
-    shown = _label_points(layout, small, board, ids, pts, radius)
+    shown, stride, edges = _label_points(layout, small, board, ids, pts, radius)
     if shown < len(ids):
-        note = (
-            f"{shown} of the {len(ids)} {plural(point_name(board), len(ids))} labelled: "
-            "the others' labels would overlap"
-        )
+        names = plural(point_name(board), len(ids))
+        note = f"{shown} of the {len(ids)} {names} labelled"
+        every = f"every {_ordinal(stride)} " if stride > 1 else ""
+        if edges:
+            note += f": {every}one of the first row and column ({numbering(board)})"
+        elif stride > 1:
+            note += f": {every}row and column (the others' labels would overlap)"
+        else:
+            note += " (the others' labels would overlap)"
         below = block[-1].y1 + round(1.5 * header.height) if block else round(2 * header.height)
         margin = max(2, round(0.4 * header.height)) + header.pad
         layout.place(
@@ -242,38 +247,50 @@ def _place_axis_letter(
             return
 
 
-def _label_order(board: Any, ids: NDArray[np.intp]) -> NDArray[np.intp]:
-    """The order in which points are offered a label: on a grid, the coarsest sub-grid first
-    (rows and columns divisible by the highest power of two), so that where labels must be
-    thinned those left form an even lattice; else by id."""
-    shape = grid_shape(board)
-    if shape is None:
-        return np.argsort(ids, kind="stable")
-    rows, cols = np.divmod(ids, max(shape[0], 1))
-
-    def twos(v: NDArray[np.intp]) -> NDArray[np.intp]:
-        out = np.zeros(len(v), dtype=np.intp)
-        for k in range(1, 20):
-            out += (v % (1 << k) == 0).astype(np.intp)
-        return out
-
-    level = np.minimum(twos(rows), twos(cols))
-    return np.lexsort((ids, -level))
-
-
 def _label_points(
     layout: Layout, style: Style, board: Any, ids: NDArray[np.intp], pts: F64, radius: float
-) -> int:
+) -> tuple[int, int, bool]:
     """Each point's id beside it where it has room (up and right as always, else on another
-    side); how many were written."""
-    shown = 0
-    for j in _label_order(board, ids):
-        text = str(int(ids[j]))
-        w, h, _ = style.size(text)
-        x, y = float(pts[j][0]), float(pts[j][1])
-        if layout.place(text, style, around(x, y, radius + style.pad, w, h)) is not None:
-            shown += 1
-    return shown
+    side). On a grid too dense for every label, those of every 2nd, 3rd, 5th... row and
+    column (the first stride at which nine in ten fit), so that the labels left form an
+    even lattice; where even that does not fit, only the first row's and column's, outside
+    the grid (every stride-th), a legend from which k = row x cols + col gives the others.
+    (How many were written, the stride, whether only the edges are.)"""
+    shape = grid_shape(board)
+    cols_n = max(shape[0], 1) if shape is not None else 1
+    rows, cols = np.divmod(ids, cols_n) if shape is not None else (ids, ids)
+    longest = max(shape) if shape is not None else 1
+    strides = [k for k in (1, 2, 3, 4, 5, 10, 20, 50, 100, 200, 500) if k < longest] or [1]
+    centre = pts.mean(axis=0) if len(pts) else np.zeros(2)
+    tries = [(k, False) for k in strides if k <= 5 or shape is None]
+    if shape is not None:
+        tries += [(k, True) for k in strides]
+    for n, (stride, edges) in enumerate(tries):
+        on = (rows % stride == 0) & (cols % stride == 0)
+        if edges:
+            on = (rows == 0) & (cols % stride == 0) | (cols == 0) & (rows % stride == 0)
+        subset = np.flatnonzero(on)
+        trial = layout.fork()
+        shown = 0
+        for j in subset:
+            text = str(int(ids[j]))
+            w, h, _ = style.size(text)
+            x, y = float(pts[j][0]), float(pts[j][1])
+            origins = around(x, y, radius + style.pad, w, h)
+            if edges:  # outwards from the grid first
+                ox, oy = x - centre[0], y - centre[1]
+                score = [(o[0] + w / 2 - x) * ox + (o[1] - h / 2 - y) * oy for o in origins]
+                origins = [origins[k] for k in np.argsort(score)[::-1]]
+            if trial.place(text, style, origins) is not None:
+                shown += 1
+        if shown >= 0.9 * len(subset) or n == len(tries) - 1:
+            layout.adopt(trial)
+            return shown, stride, edges
+    return 0, 1, False
+
+
+def _ordinal(k: int) -> str:
+    return {2: "2nd", 3: "3rd"}.get(k, f"{k}th")
 
 
 def _pitch_px(detection: Any) -> float:

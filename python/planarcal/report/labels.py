@@ -95,6 +95,18 @@ class Layout:
         self._texts: list[tuple[str, Style, tuple[int, int], Box]] = []
         self._leaders: list[tuple[tuple[int, int], tuple[int, int], int]] = []
 
+    def fork(self) -> Layout:
+        """A copy to try placements on: what it places is kept only if `adopt`ed."""
+        other = Layout.__new__(Layout)
+        other.__dict__.update(self.__dict__)
+        other.boxes, other.reserved = list(self.boxes), list(self.reserved)
+        other._texts, other._leaders = list(self._texts), list(self._leaders)
+        return other
+
+    def adopt(self, fork: Layout) -> None:
+        """Takes over what `fork` (of this layout, nothing placed here since) placed."""
+        self.__dict__.update(fork.__dict__)
+
     def reserve(self, boxes: Iterable[Box]) -> None:
         """Regions no text may cover (marked points, parts)."""
         self.reserved.extend(boxes)
