@@ -26,6 +26,7 @@ from planarcal.calib.detector_options import detector_options
 from planarcal.camera.intrinsics import CameraIntrinsics
 from planarcal.camera.opencv_errors import last_line
 from planarcal.errors import BoardNotFoundError, ImageError, IntrinsicsError
+from planarcal.progress import progress
 
 __all__ = ["MAX_FOCAL_REL_STD", "calibrate_camera"]
 
@@ -112,7 +113,7 @@ def _checked_views(views: Sequence[Any], board: Board) -> list[Any]:
 def _detect_views(views: list[Any], board: Board) -> list[BoardDetection]:
     """The board's detection in each view, all of one image size."""
     detections: list[BoardDetection] = []
-    for i, view in enumerate(views):
+    for i, view in enumerate(progress(views, desc="Finding the board", unit="view")):
         det = _detection(view, i, board)
         if detections and det.image_size != detections[0].image_size:
             w0, h0 = detections[0].image_size
