@@ -4,7 +4,8 @@
 //! by PROSAC over a ranking (the caller's quality scores, or, when outliers dominate, the
 //! correspondences' neighbourhood consistency: guided.rs), cheap sample checks, the 4-point
 //! solve, SPRT early rejection of bad hypotheses, the truncated-quadratic (MSAC) cost, local
-//! optimisation of every model that beats the best or has more support than it, and
+//! optimisation of every model that beats the best or has more support than it (a model
+//! near singular, collapsing a region onto a point, is refused: local_opt.rs), and
 //! termination from the confidence (RANSAC's rule, and PROSAC's where it samples by rank:
 //! progressive.rs). The best model is then refitted to its inliers (normalised DLT, then
 //! Levenberg-Marquardt), refitted with a Cauchy kernel where the inliers' residuals have a
@@ -586,7 +587,9 @@ fn msac_search(
                             };
                         }
                     }
-                    if best.is_some_and(|b| model.cost >= b.cost) {
+                    if best.is_some_and(|b| model.cost >= b.cost)
+                        || !local_opt::well_conditioned(&model.h)
+                    {
                         continue;
                     }
                     best = Some(model);
