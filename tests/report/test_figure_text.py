@@ -12,13 +12,16 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.quiver import QuiverKey
+from matplotlib.text import Text
 
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.detection import BoardDetection, detect_board
 from planarcal.live.objects import locate_objects
-from planarcal.report import drawing
+from planarcal.report import drawing, lens
 from planarcal.report.labels import Box
 
 SIZES = ((640, 480), (1280, 720), (3840, 2160))
@@ -240,3 +243,70 @@ def test_82_parts_do_not_pile_up(size: tuple[int, int]) -> None:
     )
     _check_parts(boxes, objects, drawn.shape)
     assert len(boxes) >= 1 + len(objects)
+
+
+# ------------------------------------------------------------------------------------------
+# matplotlib figures: every text drawn, tick labels only where their tick is in view
+
+
+def _figure_texts(fig: Any) -> list[tuple[str, Any]]:
+    """(text, window extent) of every text the figure draws."""
+    FigureCanvasAgg(fig)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    ticks: set[int] = set()
+    out = []
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            lo, hi = sorted(axis.get_view_interval())
+            slack = 1e-9 * abs(hi - lo)
+            for t in axis.get_major_ticks() + axis.get_minor_ticks():
+                for label in (t.label1, t.label2):
+                    ticks.add(id(label))
+                    shown = label.get_visible() and label.get_text()
+                    if shown and lo - slack <= t.get_loc() <= hi + slack:
+                        out.append((label.get_text(), label.get_window_extent(renderer)))
+    # A quiver's key is no child matplotlib's findobj walks: its text is taken by hand.
+    keys = [a.text for ax in fig.axes for a in ax.get_children() if isinstance(a, QuiverKey)]
+    for t in [*fig.findobj(Text), *keys]:
+        if id(t) in ticks or not t.get_visible() or not t.get_text().strip():
+            continue
+        box = t.get_window_extent(renderer)
+        if box.width > 0 and box.height > 0:
+            out.append((t.get_text(), box))
+    return out
+
+
+def _check_figure(fig: Any) -> list[tuple[str, Any]]:
+    texts = _figure_texts(fig)
+    w, h = fig.canvas.get_width_height()
+    clash = [
+        (a[0][:40], b[0][:40])
+        for i, a in enumerate(texts)
+        for b in texts[i + 1 :]
+        if a[1].overlaps(b[1])
+    ]
+    assert not clash, clash[:5]
+    outside = [t for t, b in texts if b.x0 < -1 or b.y0 < -1 or b.x1 > w + 1 or b.y1 > h + 1]
+    assert not outside, outside[:5]
+    return texts
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("lens_model", ["auto", "none"])
+def test_the_lens_figure_text_never_overlaps(
+    size: tuple[int, int], lens_model: str, paper: Any, paper_detection: BoardDetection
+) -> None:
+    """The lens figure of the paper's board seen at each size, with and without a lens
+    model: no two texts overlap (the scale key sits inside the frame, clear of the titles;
+    the legend below the distortion map, clear of its contour labels)."""
+    image, d = _detection_at(paper.calibration.image, paper_detection, size)
+    if lens_model == "auto":
+        cal = Calibration.from_detection(d)
+    else:
+        cal = Calibration(
+            d.world_points(), d.image_points, lens="none", board=d.board, image_size=size
+        )
+    texts = _check_figure(lens.lens_axes(cal, image=image))
+    keys = [t for t, _ in texts if t.endswith(" px") and t[:-3].replace(".", "").isdigit()]
+    assert keys, "no scale key"

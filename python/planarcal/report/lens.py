@@ -88,7 +88,9 @@ def _residual_panel(
         width=0.003,
         zorder=3,
     )
-    ax.quiverkey(q, 0.8, 1.015, key * scale, f"{key:g} px", labelpos="E", coordinates="axes")
+    # The key inside the frame's top-right corner (above the axes it met a long title).
+    qk = ax.quiverkey(q, 0.84, 0.95, key * scale, f"{key:g} px", labelpos="E", coordinates="axes")
+    qk.text.set_bbox({"facecolor": "w", "alpha": 0.85, "linewidth": 0, "pad": 1.5})
     ax.set_title(title, fontsize=10, loc="left")
 
 
@@ -217,7 +219,8 @@ def _displacement_panel(ax: Axes, fig: Figure, cal: Calibration) -> None:
         ax.plot([(w - 1) / 2], [(h - 1) / 2], "x", color="w", ms=9, mew=1.5, label="image centre")
     if what:
         ax.plot([cx], [cy], "+", color=_GREEN, ms=16, mew=2.5, label=what)
-    ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
+    # Below the map, where it covers neither the contours' labels nor the arrows.
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize=8, facecolor="0.8")
     scale_note = "at true size" if arrow == 1.0 else f"x{arrow:g}"
     ax.set_title(
         f"The distortion found ({cal.lens_model}): how far the lens moves each pixel of a "
@@ -232,7 +235,12 @@ def _no_lens_title(note: str) -> str:
 
 
 def lens_figure(cal: Calibration, *, image: Any = None) -> bytes:
-    """The lens model, as PNG bytes: the residuals (px) before it (a homography alone) and
+    """The lens model, as PNG bytes: the figure `lens_axes` draws."""
+    return png(lens_axes(cal, image=image))
+
+
+def lens_axes(cal: Calibration, *, image: Any = None) -> Figure:
+    """The lens model, as a matplotlib figure: the residuals (px) before it (a homography alone) and
     after it, drawn as arrows over the image at one scale, the distortion it found as a map
     of how far it moves each pixel (with the board's outline and the lens centre), and the
     models tried. Without a lens model, the residuals and why there is none (the note).
@@ -255,7 +263,7 @@ def lens_figure(cal: Calibration, *, image: Any = None) -> bytes:
         if grid is not None:
             _candidates_panel(fig.add_subplot(grid[0, 1]), cal)
         fig.suptitle(textwrap.fill(_no_lens_title(cal.lens_note), 110), fontsize=11)
-        return png(fig)
+        return fig
     before = homography_alone(cal)
     res_before = before.image_points - before.reprojected_px
     scale, key = _arrow_scale(cal, res_before)
@@ -290,4 +298,4 @@ def lens_figure(cal: Calibration, *, image: Any = None) -> bytes:
     else:
         _displacement_panel(fig.add_subplot(rows[1]), fig, cal)
     fig.suptitle(textwrap.fill(f"Lens: {cal.lens_note}", 140), fontsize=12)
-    return png(fig)
+    return fig
