@@ -19,9 +19,11 @@ from matplotlib.text import Text
 from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
+from planarcal.calib.coverage import Coverage, calibration_coverage, coverage
 from planarcal.calib.detection import BoardDetection, detect_board
 from planarcal.live.objects import locate_objects
 from planarcal.report import drawing, lens
+from planarcal.report.coverage import draw_coverage, placement_labels
 from planarcal.report.labels import Box
 
 SIZES = ((640, 480), (1280, 720), (3840, 2160))
@@ -310,3 +312,63 @@ def test_the_lens_figure_text_never_overlaps(
     texts = _check_figure(lens.lens_axes(cal, image=image))
     keys = [t for t, _ in texts if t.endswith(" px") and t[:-3].replace(".", "").isdigit()]
     assert keys, "no scale key"
+
+
+# ------------------------------------------------------------------------------------------
+# the coverage figure (OpenCV): its text panels
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("limit", ["default", "region"])
+def test_the_coverage_figure_panels_never_overlap(
+    size: tuple[int, int], limit: str, paper: Any, paper_detection: BoardDetection
+) -> None:
+    image, d = _detection_at(paper.calibration.image, paper_detection, size)
+    cal = Calibration.from_detection(d)
+    base = calibration_coverage(cal)
+    cov = base if limit == "default" else calibration_coverage(cal, 0.5 * base.image_std_mm)
+    boxes: list[Box] = []
+    drawn = draw_coverage(image, cov, placement_labels(cal), text_boxes=boxes)
+    _check(boxes, drawn.shape)
+    # The title, the scale, the placement's label, and "next" when there is a region.
+    assert len(boxes) == 3 + (cov.region is not None)
+
+
+def test_crowded_placement_labels_move_off_the_title_and_each_other() -> None:
+    """Nine placements, one under the title and two overlapping: every label is written
+    where it covers no other panel."""
+    w, h = 640, 480
+    squares = [
+        np.array([[x, y], [x + 90, y], [x + 90, y + 60], [x, y + 60]], dtype=np.float64)
+        for x, y in [
+            (10, 5),
+            (20, 10),
+            (200, 150),
+            (210, 160),
+            (400, 300),
+            (100, 380),
+            (500, 60),
+            (300, 40),
+            (520, 400),
+        ]
+    ]
+
+    def std(px: Any) -> Any:
+        return 0.01 + 0.001 * np.hypot(px[:, 0] - 320, px[:, 1] - 240)
+
+    cov: Coverage = coverage(std, (w, h), squares, 0.3)
+    labels = [f"{k} placement-{k}" for k in range(len(squares))]
+    boxes: list[Box] = []
+    drawn = draw_coverage(None, cov, labels, text_boxes=boxes)
+    _check(boxes, drawn.shape)
+    assert len(boxes) == 2 + len(squares) + (cov.region is not None)
+
+
+def test_coverage_text_grows_with_the_image(paper: Any, paper_detection: BoardDetection) -> None:
+    heights = {}
+    for size in SIZES:
+        image, d = _detection_at(paper.calibration.image, paper_detection, size)
+        boxes: list[Box] = []
+        draw_coverage(image, calibration_coverage(Calibration.from_detection(d)), text_boxes=boxes)
+        heights[size] = boxes[0].height  # the title's panel
+    assert heights[SIZES[2]] >= 2 * heights[SIZES[1]], heights

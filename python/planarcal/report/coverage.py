@@ -18,6 +18,7 @@ from planarcal.calib.calibration import Calibration
 from planarcal.calib.coverage import Coverage, calibration_coverage
 from planarcal.images import as_grey
 from planarcal.report.drawing import png_bytes
+from planarcal.report.labels import Box
 
 U8 = NDArray[np.uint8]
 F64 = NDArray[np.float64]
@@ -66,10 +67,17 @@ def placement_labels(cal: Any) -> list[str]:
     return out
 
 
-def draw_coverage(image: Any, cov: Coverage, labels: Sequence[str] | None = None) -> U8:
+def draw_coverage(
+    image: Any,
+    cov: Coverage,
+    labels: Sequence[str] | None = None,
+    *,
+    text_boxes: list[Box] | None = None,
+) -> U8:
     """The coverage drawn over `image` (grey or BGR, dimmed; a plain grey background when
     None or not of the coverage's image size): BGR, the image's size. `labels`: one per
-    placement (default: their indices)."""
+    placement (default: their indices). `text_boxes`, when given, receives the text panels'
+    boxes (none overlaps another)."""
     w, h = cov.image_size
     s = max(0.9, max(w, h) / 1280.0)  # text and lines relative to a 1280-pixel-wide image
     canvas = _background(image, (w, h))
@@ -84,8 +92,7 @@ def draw_coverage(image: Any, cov: Coverage, labels: Sequence[str] | None = None
         mixed = cv2.addWeighted(canvas, 1.0 - MAP_ALPHA, colour, MAP_ALPHA, 0.0)
         cv2.copyTo(mixed, finite.astype(np.uint8), canvas)
     names = list(labels) if labels is not None else [str(k) for k in range(len(cov.outlines_px))]
-    for k, hull in enumerate(cov.outlines_px):
-        _placement(canvas, hull, names[k] if k < len(names) else str(k), s)
+    centres = [_placement(canvas, hull, s) for hull in cov.outlines_px]
     region = cov.region
     if region is not None:
         thick = max(2, round(2 * s))
@@ -95,9 +102,22 @@ def draw_coverage(image: Any, cov: Coverage, labels: Sequence[str] | None = None
             cv2.polylines(canvas, pts, False, REGION_BGR, thick, cv2.LINE_8)
         tx, ty = (round(v) for v in region.target_px)
         cv2.drawMarker(canvas, (tx, ty), REGION_BGR, cv2.MARKER_CROSS, int(24 * s), thick)
-        _text_lines(canvas, ["next"], (tx + int(8 * s), ty - int(8 * s)), s)
-    _title(canvas, cov, s)
-    _scale_bar(canvas, norm, cov, s, has_no_place=not finite.all())
+    # The panels, the title and scale first: a placement's label or "next" goes where it
+    # covers neither them nor another label (moved down, up, right or left when it would).
+    panels = [_title(canvas, cov, s)]
+    panels.append(_scale_bar(canvas, norm, cov, s, has_no_place=not finite.all(), avoid=panels))
+    for k, centre in enumerate(centres):
+        if centre is not None:
+            label = names[k] if k < len(names) else str(k)
+            (tw, th), _ = cv2.getTextSize(label, FONT, 0.65 * s, max(1, round(2 * s)))
+            org = (round(centre[0] - tw / 2), round(centre[1] + th / 2))
+            panels.append(_free_text(canvas, [label], org, s, panels, big=True))
+    if region is not None:
+        tx, ty = (round(v) for v in region.target_px)
+        org = (tx + int(8 * s), ty - int(8 * s))
+        panels.append(_free_text(canvas, ["next"], org, s, panels))
+    if text_boxes is not None:
+        text_boxes.extend(panels)
     return canvas
 
 
@@ -211,26 +231,52 @@ def _background(image: Any, size: tuple[int, int]) -> U8:
     return np.asarray(cv2.cvtColor(dim, cv2.COLOR_GRAY2BGR), np.uint8)
 
 
-def _placement(canvas: U8, hull: F64, label: str, s: float) -> None:
-    """A placement's outline (white on a dark halo) and its label at its middle."""
+def _placement(canvas: U8, hull: F64, s: float) -> tuple[float, float] | None:
+    """A placement's outline (white on a dark halo); its middle, where its label goes."""
     if not len(hull):
-        return
+        return None
     pts = [np.rint(hull * 16).astype(np.int32).reshape(-1, 1, 2)]
     thick = max(1, round(1.5 * s))
     cv2.polylines(canvas, pts, True, HALO_BGR, thick + 2, cv2.LINE_AA, 4)
     cv2.polylines(canvas, pts, True, PLACEMENT_BGR, thick, cv2.LINE_AA, 4)
     m = cv2.moments(hull.astype(np.float32))
     cx, cy = (m["m10"] / m["m00"], m["m01"] / m["m00"]) if m["m00"] else hull.mean(axis=0)
-    (tw, th), _ = cv2.getTextSize(label, FONT, 0.65 * s, max(1, round(2 * s)))
-    org = (round(float(cx) - tw / 2), round(float(cy) + th / 2))
-    _text_lines(canvas, [label], org, s, big=True)
+    return float(cx), float(cy)
+
+
+def _free_text(
+    canvas: U8,
+    lines: Sequence[str],
+    org: tuple[int, int],
+    s: float,
+    taken: Sequence[Box],
+    *,
+    big: bool = False,
+) -> Box:
+    """`_text_lines` at `org`, or moved by whole panels down, up, right or left (up to nine)
+    to the first place where its panel overlaps none of `taken`; at `org` when none is."""
+    box = _text_lines(canvas, lines, org, s, big=big, dry=True)
+    dx, dy = box.x1 - box.x0 + 2, box.y1 - box.y0 + 2
+    for k in range(10):
+        for mx, my in ((0, 0),) if k == 0 else ((0, k), (0, -k), (k, 0), (-k, 0)):
+            at = (org[0] + mx * dx, org[1] + my * dy)
+            trial = _text_lines(canvas, lines, at, s, big=big, dry=True)
+            if not any(trial.overlaps(t) for t in taken):
+                return _text_lines(canvas, lines, at, s, big=big)
+    return _text_lines(canvas, lines, org, s, big=big)
 
 
 def _text_lines(
-    canvas: U8, lines: Sequence[str], org: tuple[int, int], s: float, *, big: bool = False
-) -> None:
+    canvas: U8,
+    lines: Sequence[str],
+    org: tuple[int, int],
+    s: float,
+    *,
+    big: bool = False,
+    dry: bool = False,
+) -> Box:
     """Lines of dark text on a white panel, the first baseline at `org` (kept inside the
-    image)."""
+    image); the panel's box (`dry`: only that, nothing drawn)."""
     scale, thick = (0.65 * s, max(1, round(2 * s))) if big else (0.5 * s, max(1, round(s)))
     sizes = [cv2.getTextSize(t, FONT, scale, thick) for t in lines]
     line_h = max(th + base for (_, th), base in sizes) + int(4 * s)
@@ -240,6 +286,14 @@ def _text_lines(
     y = min(max(line_h, org[1]), max(line_h, h - line_h * len(lines)))
     top = y - line_h + int(4 * s)
     pad = int(3 * s)
+    box = Box(
+        max(0, x - pad),
+        max(0, top - pad),
+        min(w, x + width + pad + 1),
+        min(h, top + line_h * len(lines) + 1),
+    )
+    if dry:
+        return box
     cv2.rectangle(
         canvas, (x - pad, top - pad), (x + width + pad, top + line_h * len(lines)), (255,) * 3, -1
     )
@@ -247,6 +301,7 @@ def _text_lines(
         cv2.putText(
             canvas, text, (x, y + k * line_h), FONT, scale, (20, 20, 20), thick, cv2.LINE_AA
         )
+    return box
 
 
 def _wrapped(text: str, width: int, s: float) -> list[str]:
@@ -261,7 +316,7 @@ def _wrapped(text: str, width: int, s: float) -> list[str]:
     return lines
 
 
-def _title(canvas: U8, cov: Coverage, s: float) -> None:
+def _title(canvas: U8, cov: Coverage, s: float) -> Box:
     """The title: what the map is, the placements' coverage, and the sentence."""
     n = len(cov.outlines_px)
     head = (
@@ -271,10 +326,18 @@ def _title(canvas: U8, cov: Coverage, s: float) -> None:
     width = canvas.shape[1] - int(16 * s)
     sentence = cov.sentence
     lines = _wrapped(head, width, s) + _wrapped(sentence[0].upper() + sentence[1:], width, s)
-    _text_lines(canvas, lines, (int(8 * s), int(20 * s)), s)
+    return _text_lines(canvas, lines, (int(8 * s), int(20 * s)), s)
 
 
-def _scale_bar(canvas: U8, norm: _Scale, cov: Coverage, s: float, *, has_no_place: bool) -> None:
+def _scale_bar(
+    canvas: U8,
+    norm: _Scale,
+    cov: Coverage,
+    s: float,
+    *,
+    has_no_place: bool,
+    avoid: Sequence[Box] = (),
+) -> Box:
     """The colour scale, labelled in mm, with the limit marked, at the bottom-right."""
     h, w = canvas.shape[:2]
     bar_w, bar_h = int(16 * s), int(0.4 * h)
@@ -291,7 +354,7 @@ def _scale_bar(canvas: U8, norm: _Scale, cov: Coverage, s: float, *, has_no_plac
     pad = int(6 * s)
     panel_w = max(bar_w + label_w + 3 * pad, note_w + 2 * pad)
     panel_h = bar_h + int(22 * s) * (1 + len(notes)) + 2 * pad
-    x0, y0 = _free_corner(cov, (w, h), (panel_w, panel_h), pad)
+    x0, y0 = _free_corner(cov, (w, h), (panel_w, panel_h), pad, avoid)
     cv2.rectangle(canvas, (x0, y0), (x0 + panel_w, y0 + panel_h), (255,) * 3, -1)
     thick = max(1, round(s))
     cv2.putText(canvas, title, (x0 + pad, y0 + int(18 * s)), FONT, 0.5 * s, (20,) * 3, thick)
@@ -315,14 +378,20 @@ def _scale_bar(canvas: U8, norm: _Scale, cov: Coverage, s: float, *, has_no_plac
     for k, note in enumerate(notes):
         y = by + bar_h + int(22 * s) * (k + 1)
         cv2.putText(canvas, note, (x0 + pad, y), FONT, 0.45 * s, (20,) * 3, thick, cv2.LINE_AA)
+    return Box(x0, y0, x0 + panel_w + 1, y0 + panel_h + 1)
 
 
 def _free_corner(
-    cov: Coverage, size: tuple[int, int], panel: tuple[int, int], pad: int
+    cov: Coverage,
+    size: tuple[int, int],
+    panel: tuple[int, int],
+    pad: int,
+    avoid: Sequence[Box] = (),
 ) -> tuple[int, int]:
     """The top-left of a `panel` (width, height) in the image's bottom-right corner, else its
     bottom-left or right or left middle: the first that hides neither where the board goes
-    next nor a placement (else the one hiding least of them)."""
+    next nor a placement (else the one hiding least of them), and never one over a panel of
+    `avoid` (the title) where another is free of them."""
     (w, h), (pw, ph) = size, panel
     corners = [
         (w - pw - pad, h - ph - pad),
@@ -345,7 +414,8 @@ def _free_corner(
         near = 3 * pad  # the target's cross and its label
         if target is not None and x - near <= target[0] <= x + pw + near:
             area += float(w * h) if y - near <= target[1] <= y + ph + near else 0.0
-        return area
+        clash = Box(x, y, x + pw + 1, y + ph + 1)
+        return area + (4.0 * w * h if any(clash.overlaps(b) for b in avoid) else 0.0)
 
     return min(corners, key=lambda c: hidden(*c))  # the first of the least hidden
 
