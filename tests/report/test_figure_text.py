@@ -20,11 +20,15 @@ from planarcal import synth
 from planarcal.calib.board import CircleGridBoard
 from planarcal.calib.calibration import Calibration
 from planarcal.calib.coverage import Coverage, calibration_coverage, coverage
+from planarcal.calib.detect import DetectionDiagnostics, RefusedCandidate, SeenBlobs
 from planarcal.calib.detection import BoardDetection, detect_board
 from planarcal.live.objects import locate_objects
 from planarcal.report import drawing, lens
 from planarcal.report.coverage import draw_coverage, placement_labels
+from planarcal.report.deviations import deviation_axes
+from planarcal.report.failure import detection_failure_axes
 from planarcal.report.labels import Box
+from planarcal.report.uncertainty import uncertainty_axes
 
 SIZES = ((640, 480), (1280, 720), (3840, 2160))
 
@@ -372,3 +376,87 @@ def test_coverage_text_grows_with_the_image(paper: Any, paper_detection: BoardDe
         draw_coverage(image, calibration_coverage(Calibration.from_detection(d)), text_boxes=boxes)
         heights[size] = boxes[0].height  # the title's panel
     assert heights[SIZES[2]] >= 2 * heights[SIZES[1]], heights
+
+
+# ------------------------------------------------------------------------------------------
+# the deviation, uncertainty and failure figures (matplotlib)
+
+
+def _calibration(
+    which: str, size: tuple[int, int], paper: Any, paper_detection: Any, cell: Any
+) -> Any:
+    """The paper's board, a board small in a work cell's image (the uncertainty title's
+    warning: seven lines), or the paper's board's first four rows only (a partial view: the
+    legend's fifth entry) seen at `size`."""
+    image, detection = (paper.calibration.image, paper_detection) if which != "cell" else cell
+    _, d = _detection_at(image, detection, size)
+    if which == "partial":
+        keep = slice(0, 4 * d.board.cols)
+        return Calibration(
+            d.world_points()[keep], d.image_points[keep], board=d.board, image_size=size
+        )
+    return Calibration.from_detection(d)
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("which", ["paper", "cell", "partial"])
+@pytest.mark.parametrize("figure", ["deviations", "uncertainty"])
+def test_the_deviation_and_uncertainty_figures_text_never_overlaps(
+    figure: str,
+    which: str,
+    size: tuple[int, int],
+    paper: Any,
+    paper_detection: BoardDetection,
+    cell: tuple[Any, BoardDetection],
+) -> None:
+    """No two texts overlap and none leaves the figure: the deviation figure's title in two
+    lines (one ran past the left edge), the uncertainty figure taller with a warning's
+    lines (they pushed the title off the top and the legend off the bottom)."""
+    cal = _calibration(which, size, paper, paper_detection, cell)
+    draw = deviation_axes if figure == "deviations" else uncertainty_axes
+    texts = _check_figure(draw(cal))
+    if figure == "uncertainty":
+        assert any(t.startswith("board centre: ") for t, _ in texts)  # the legend is drawn
+        assert any(t.startswith("1-sigma position uncertainty on") for t, _ in texts)
+    else:
+        assert any(t.startswith("Calibration deviation per") for t, _ in texts)
+
+
+def _search_record(detection: BoardDetection, size: tuple[int, int]) -> DetectionDiagnostics:
+    """What a search for a 10 x 8 board in the paper's 14 x 10 one might see, six refused
+    candidates over one another."""
+    found = detection.image_points
+    reasons = (
+        "the dots continue past the grid's right edge: the board in view is larger than 10 x 8",
+        "not the board's grid: dot 4 is 30.0 px from where a homography puts it",
+    )
+    return DetectionDiagnostics(
+        board=CircleGridBoard(cols=10, rows=8, pitch=20.0, diameter=10.0),
+        image_size=size,
+        blobs=(
+            SeenBlobs("dark", found, np.full(len(found), 0.3 * detection.pitch_px)),
+            SeenBlobs("light", found[:5] + 0.5 * detection.pitch_px, np.full(5, 4.0)),
+        ),
+        candidates=tuple(
+            RefusedCandidate(
+                "symmetric" if k % 2 else "blobs",
+                "dark",
+                found[10 * k : 10 * k + 80],
+                reasons[k % 2],
+            )
+            for k in range(6)
+        ),
+    )
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("record", [True, False], ids=["record", "no-record"])
+def test_the_detection_failure_figure_text_never_overlaps(
+    size: tuple[int, int], record: bool, paper: Any, paper_detection: BoardDetection
+) -> None:
+    image, d = _detection_at(paper.calibration.image, paper_detection, size)
+    diagnostics = _search_record(d, size) if record else None
+    message = f"no 10 x 8 circle grid (80 dots) found in the {size[0]} x {size[1]} image."
+    texts = _check_figure(detection_failure_axes(image, diagnostics, message))
+    assert any(t == "Board not found" for t, _ in texts)
+    assert any(message[:20] in t for t, _ in texts)

@@ -3,16 +3,27 @@ the deviations over the board."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planarcal.calib.calibration import Calibration
 from planarcal.report.figure import new_figure, png
 from planarcal.report.point_names import calibration_ids, numbering, point_name
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 
 def deviation_figure(cal: Calibration) -> bytes:
     """The paper's Figure 5 (dX and dY per point, mm, over the points' ids) and a vector
     field of the deviations over the board, as PNG bytes."""
+    return png(deviation_axes(cal))
+
+
+def deviation_axes(cal: Calibration) -> Figure:
+    """The deviation figure (a matplotlib Figure, see deviation_figure), so that its texts
+    can be measured."""
     dev = cal.deviations_mm
     loo = cal.loo_deviations_mm
     idx = calibration_ids(cal)  # the points' ids, 0 the origin, as everywhere
@@ -31,9 +42,10 @@ def deviation_figure(cal: Calibration) -> bytes:
         ax.legend(loc="upper right", fontsize=8)
     ax_dy.set_xlabel(f"{point} ({numbering(cal.board)})")
     s = cal.summary()
-    # Both units: the mm scale with the stated pitch, the px do not.
+    # Both units: the mm scale with the stated pitch, the px do not. Two lines: one ran
+    # past the figure's left edge.
     ax_dx.set_title(
-        f"Calibration deviation per {point} (the paper's Figure 5); leave-one-out RMS "
+        f"Calibration deviation per {point} (the paper's Figure 5)\nleave-one-out RMS "
         f"{s.loo_rms_mm:.3f} mm, {s.loo_rms_px:.3f} px in the image"
     )
     ax_v = fig.add_subplot(grid[:, 1])
@@ -61,4 +73,4 @@ def deviation_figure(cal: Calibration) -> bytes:
     ax_v.set_xlabel("X (mm)")
     ax_v.set_ylabel("Y (mm)")
     ax_v.set_title(f"Deviations over the board (arrows x{scale:.0f})")
-    return png(fig)
+    return fig

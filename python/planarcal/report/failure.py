@@ -26,6 +26,7 @@ from planarcal.report.point_names import is_circle_grid
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 
 F64 = NDArray[np.float64]
@@ -41,11 +42,17 @@ _CANDIDATE_COLOURS = ("tab:red", "tab:green", "tab:purple", "tab:brown", "tab:pi
 
 
 def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> bytes:
-    """What a failed search saw, as PNG bytes: the image with the blobs of each polarity
-    (circles of their diameter), each candidate grid (its points joined in order, numbered
-    and labelled with its finder and polarity), and beside it the error message and why each
-    candidate was refused. `diagnostics`: a DetectionDiagnostics, or None (the image and the
-    message alone; a record of another kind, as far as it has the parts drawn)."""
+    """The failure figure (see detection_failure_axes) as PNG bytes."""
+    return png(detection_failure_axes(image, diagnostics, message))
+
+
+def detection_failure_axes(image: Any, diagnostics: Any, message: str) -> Figure:
+    """What a failed search saw, as a matplotlib Figure (its texts can be measured): the
+    image with the blobs of each polarity (circles of their diameter), each candidate grid
+    (its points joined in order, numbered and labelled with its finder and polarity), and
+    beside it the error message and why each candidate was refused. `diagnostics`: a
+    DetectionDiagnostics, or None (the image and the message alone; a record of another
+    kind, as far as it has the parts drawn)."""
     picture = rgb_image(image)
     h, w = picture.shape[:2]
     # The image panel is about 10 in wide: a height that fits its aspect, room for the text.
@@ -75,7 +82,7 @@ def detection_failure_figure(image: Any, diagnostics: Any, message: str) -> byte
         transform=text.transAxes,
     )
     fig.suptitle("Board not found", fontsize=13, color="tab:red")
-    return png(fig)
+    return fig
 
 
 def _blobs(diagnostics: Any) -> list[tuple[str, F64, F64]]:

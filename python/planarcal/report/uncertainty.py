@@ -8,6 +8,7 @@ carries the calibration's warning that the rest is extrapolated."""
 from __future__ import annotations
 
 import textwrap
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,6 +18,9 @@ from planarcal.calib.error_budget import OUTLINE_CENTROID_SIGMA_PX
 from planarcal.report.figure import new_figure, outline_mm, png
 from planarcal.report.mapping import MAP_ERRORS, mappable, masked
 from planarcal.report.point_names import calibration_ids, plural, point_name
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def _extrapolation_warning(cal: Calibration) -> str | None:
@@ -63,13 +67,18 @@ _DEGRADATION = (1.5, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0)
 
 
 def uncertainty_figure(cal: Calibration) -> bytes:
+    """The uncertainty map (see uncertainty_axes) as PNG bytes."""
+    return png(uncertainty_axes(cal))
+
+
+def uncertainty_axes(cal: Calibration) -> Figure:
     """The 1-sigma position uncertainty of an exact pixel (mm, from the fit's covariance and
     the model's bias) as a heat map over
     the working area (the image region around the board, extended by half the board's size
     each way and clipped to the image) on the plane, in mm, with the board's dots, contour
     lines at multiples of the uncertainty at the board's centre and the line where it
-    doubles marked; as PNG bytes. Pixels with no place on the plane (beyond the lens
-    model's valid radius, past the horizon) are left blank."""
+    doubles marked, as a matplotlib Figure (its texts can be measured). Pixels with no place
+    on the plane (beyond the lens model's valid radius, past the horizon) are left blank."""
     fig = new_figure(11, 8.5)  # first: it checks that matplotlib is installed
     from matplotlib.colors import LogNorm, Normalize  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
     from matplotlib.tri import Triangulation  # noqa: PLC0415 (matplotlib is loaded when a figure is drawn)
@@ -92,7 +101,7 @@ def uncertainty_figure(cal: Calibration) -> bytes:
             transform=ax.transAxes,
         )
         ax.set_axis_off()
-        return png(fig)
+        return fig
     x0, x1, y0, y1 = _working_region_px(cal)
     nx = 201
     ny = max(2, round(nx * (y1 - y0) / max(x1 - x0, 1e-9)))
@@ -125,7 +134,7 @@ def uncertainty_figure(cal: Calibration) -> bytes:
             transform=ax.transAxes,
         )
         ax.set_axis_off()
-        return png(fig)
+        return fig
     xy = np.where(valid[:, None], out[:, :2], centre_mm)
     std = np.where(valid, out[:, 2], 0.0)
     tri = Triangulation(xy[:, 0], xy[:, 1], tris)
@@ -210,15 +219,17 @@ def uncertainty_figure(cal: Calibration) -> bytes:
         else f"the board's image region extended by half its size each way{clipped}"
     )
     warning = _extrapolation_warning(cal)
-    ax.set_title(
+    title = (
         "1-sigma position uncertainty on the plane of an exact pixel, from the fit's covariance "
         "and the model's bias\n"
         f"(a located part's centroid error, {OUTLINE_CENTROID_SIGMA_PX:g} px, makes it "
         f"{part_std:.3g} mm at the board's centre)\n"
         f"Working area: {area}."
         f"\n{c:.3g} mm at the board's centre; white contours at multiples of it; {where}"
-        + ("" if warning is None else "\n" + textwrap.fill(f"Warning: {warning}", 110)),
-        fontsize=10,
-        color="k" if warning is None else "tab:red",
+        + ("" if warning is None else "\n" + textwrap.fill(f"Warning: {warning}", 110))
     )
-    return png(fig)
+    ax.set_title(title, fontsize=10, color="k" if warning is None else "tab:red")
+    # A warning's lines make the title taller: the figure grows with it, or the layout
+    # pushes the title off the top and the legend off the bottom (measured at 8.5 in).
+    fig.set_size_inches(11, 8.5 + 0.3 * max(0, title.count("\n") + 1 - 4))
+    return fig
