@@ -269,13 +269,15 @@ class Section:
 # Contenders
 
 
-def planarcal_robust(problem: Problem, seed: int, with_scores: bool = False) -> Homography:
+def planarcal_robust(
+    problem: Problem, seed: int, with_scores: bool = False, max_iters: int = MAX_ITERS
+) -> Homography:
     return pc.estimate_homography_robust(
         problem.src,
         problem.dst,
         threshold=THRESHOLD_PX,
         confidence=CONFIDENCE,
-        max_iters=MAX_ITERS,
+        max_iters=max_iters,
         seed=seed,
         scores=problem.scores if with_scores else None,
     ).H

@@ -84,6 +84,7 @@ from bench_robust import (
     format_px,
     mean_distance,
     oracle_refit,
+    planarcal_robust,
     project,
     ratio_test_matches,
     shared_folder,
@@ -181,15 +182,7 @@ class DataSet:
 
 def planarcal_contender(max_iters: int, with_scores: bool = False) -> Contender:
     def estimate(problem: Problem, seed: int) -> Homography:
-        return pc.estimate_homography_robust(
-            problem.src,
-            problem.dst,
-            threshold=THRESHOLD_PX,
-            confidence=CONFIDENCE,
-            max_iters=max_iters,
-            seed=seed,
-            scores=problem.scores if with_scores else None,
-        ).H
+        return planarcal_robust(problem, seed, with_scores, max_iters)
 
     name = "planarcal estimate_homography_robust" + (", scores" if with_scores else "")
     return Contender(name, estimate)
