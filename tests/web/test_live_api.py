@@ -7,6 +7,7 @@ parts in mm, the object settings saved), and the guards (token, body size, bad r
 from __future__ import annotations
 
 import functools
+import http.client
 import json
 import math
 import os
@@ -277,6 +278,18 @@ def test_off_loopback_every_request_needs_the_token(video: LiveVideo, tmp_path: 
         )
         status, _ = server.call("GET", f"/?token={token}")
         assert status == 200
+        # The cookie is set for the right token only, even where another credential passes.
+        port = int(server.base.rsplit(":", 1)[1])
+        for query, cookie in ((token, True), (token + "x", False)):
+            connection = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+            connection.request(
+                "GET", f"/?token={query}", headers={"Authorization": f"Bearer {token}"}
+            )
+            response = connection.getresponse()
+            response.read()
+            assert response.status == 200
+            assert (response.getheader("set-cookie") is not None) == cookie
+            connection.close()
 
 
 def test_ctrl_c_stops_it_and_nothing_is_written_without_a_file(

@@ -82,8 +82,8 @@ class _Guard:
             )(scope, receive, send)
             return
         length = request.headers.get("content-length")
-        if length is not None and (not length.isdigit() or int(length) > MAX_BODY_BYTES):
-            if length.isdigit() and int(length) <= DRAIN_BYTES:
+        if length is not None and (not _whole(length) or int(length) > MAX_BODY_BYTES):
+            if _whole(length) and int(length) <= DRAIN_BYTES:
                 await _drain(receive)  # a client still sending misses an early answer
             await _error(BodyTooLargeError(f"the body is over {MAX_BODY_BYTES} bytes"))(
                 scope, receive, send
@@ -98,8 +98,12 @@ class _Guard:
             request.headers.get("authorization", "").removeprefix("Bearer ").strip() or None,
         ]
         assert self.token is not None
-        want = self.token.encode()
-        return any(g is not None and hmac.compare_digest(g.encode(), want) for g in given)
+        return any(g is not None and _same(g, self.token) for g in given)
+
+
+def _same(given: str, token: str) -> bool:
+    """Whether ``given`` is the token (in constant time)."""
+    return hmac.compare_digest(given.encode(), token.encode())
 
 
 async def _drain(receive: Receive) -> None:
@@ -140,9 +144,14 @@ async def _json_body(request: Request) -> dict[str, Any]:
     return body
 
 
+def _whole(text: str) -> bool:
+    """ASCII digits only (str.isdigit also takes "²", which int() refuses)."""
+    return text.isascii() and text.isdigit()
+
+
 def _index(path: str) -> int:
     """A path's placement or touch number."""
-    if not path.isdigit() or len(path) > 9:
+    if not _whole(path) or len(path) > 9:
         raise NotFoundError(f"{path!r} is not a number")
     return int(path)
 
@@ -173,7 +182,7 @@ class _Api:
     async def page(self, request: Request) -> Response:
         response = FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
         given = request.query_params.get("token")
-        if self.token is not None and given is not None:
+        if self.token is not None and given is not None and _same(given, self.token):
             response.set_cookie(TOKEN_COOKIE, given, httponly=True, samesite="strict")
         return response
 
