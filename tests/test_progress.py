@@ -89,7 +89,9 @@ def test_placements_show_progress_on_a_terminal(placements: list[Path], tmp_path
     status, terminal, stdout = _on_a_terminal(argv, _env())
     assert status == 0, terminal.decode(errors="replace")
     text = terminal.decode()
-    assert "Finding the board:" in text and "0/3" in text and "3/3" in text, text
+    # tqdm redraws at most every 0.1 s, so how far the bar is seen to get before it is
+    # erased depends on the machine's speed; its start is always drawn.
+    assert "Finding the board:" in text and "0/3" in text, text
     # Erased when done: the last thing on the terminal is the bar's line cleared.
     assert text.endswith("\r"), repr(text[-120:])
     summary = json.loads(stdout)  # stdout is the JSON alone
