@@ -117,10 +117,17 @@ def foreign_raises(package_dir: Path) -> list[tuple[Path, int, str]]:
     classes = set(error_classes(package_dir))
     found = []
     for path, tree in _modules(package_dir):
+        aliases = {
+            alias.asname: alias.name
+            for node in ast.walk(tree)
+            if isinstance(node, ast.ImportFrom)
+            for alias in node.names
+            if alias.asname
+        }
         for node in ast.walk(tree):
             if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call | ast.Name):
                 target = node.exc.func if isinstance(node.exc, ast.Call) else node.exc
-                name = _name(target)
+                name = aliases.get(_name(target), _name(target))
                 if name[:1].isupper() and name not in classes and name not in ARGPARSE_ERRORS:
                     found.append((path, node.lineno, name))
     return found
@@ -468,7 +475,7 @@ class _SiteWalker:
             return [name]
         if isinstance(node, ast.Attribute):
             return [name] if name in self.classes else []
-        if isinstance(node, ast.Call) and name == "type" and len(node.args) == 1:
+        if isinstance(node, ast.Call) and _name(node.func) == "type" and len(node.args) == 1:
             return self._caught(node.args[0])
         if not isinstance(node, ast.Name):
             return []
