@@ -566,9 +566,12 @@ def _is_text(node: ast.expr) -> bool:
 
 
 def _placeholder(node: ast.expr) -> str:
-    text = ast.unparse(node)
+    """``{expression}`` for a variable part; a long call shows only what it calls."""
     if isinstance(node, ast.Call) and _name(node.func) in ("str", "repr") and node.args:
-        text = ast.unparse(node.args[0])
+        node = node.args[0]
+    text = ast.unparse(node)
+    if len(text) > _MAX_PLACEHOLDER and isinstance(node, ast.Call):
+        text = f"{ast.unparse(node.func)}(...)"
     return "{" + (text if len(text) <= _MAX_PLACEHOLDER else "...") + "}"
 
 
