@@ -51,7 +51,7 @@ autodoc_typehints_format = "short"
 # numpy's ArrayLike by its name, not the union of a dozen protocols it stands for.
 autodoc_type_aliases = {"ArrayLike": "numpy.typing.ArrayLike"}
 # A constant's value is left out: some are long tables (the synthetic corpora).
-autodoc_default_options = {"members": True, "show-inheritance": True, "no-value": True}
+autodoc_default_options = {"members": True, "no-value": True}
 
 # Strict: every cross-reference must resolve (-n), except to the libraries whose own
 # documentation is not linked (no intersphinx: the build fetches nothing).
