@@ -81,7 +81,12 @@ def _options(parser: argparse.ArgumentParser, program: str) -> list[str]:
     lines = [f".. program:: {program}", ""]
     formatter = parser._get_formatter()
     for group in parser._action_groups:
-        actions = [a for a in group._group_actions if a.help != argparse.SUPPRESS]
+        # The commands are the table above the options, not an option.
+        actions = [
+            a
+            for a in group._group_actions
+            if a.help != argparse.SUPPRESS and not isinstance(a, argparse._SubParsersAction)
+        ]
         if not actions:
             continue
         lines += [f".. rubric:: {escaped(group.title or 'options')}", ""]
