@@ -77,17 +77,23 @@ def _resolve(
         parts = source.group(1).split(".")
         candidates += [".".join([*parts[:n], target]) for n in range(len(parts), 0, -1)]
     documented = _documented_by_identity(env)
-    for candidate in candidates:
-        value = _imported(candidate)
-        if value is _MISSING:
-            continue
-        name = documented.get((id(value), candidate.rsplit(".", 1)[-1]))
-        if name is not None:
-            # "obj": a function named by :class: in a type hint is still that function.
-            return env.get_domain("py").resolve_xref(
-                env, node["refdoc"], app.builder, "obj", name, node, contnode
-            )
-    return None
+    names = [
+        documented.get((id(value), candidate.rsplit(".", 1)[-1]))
+        for candidate in candidates
+        if (value := _imported(candidate)) is not _MISSING
+    ]
+    # A type hint's bare name (an alias, ``Coords``) the one documented object of that name
+    # (Sphinx 9 finds these itself; 8 looks for a class only).
+    if "." not in target:
+        same_name = {name for name in documented.values() if name.endswith(f".{target}")}
+        names += list(same_name) if len(same_name) == 1 else []
+    name = next((n for n in names if n is not None), None)
+    if name is None:
+        return None
+    # "obj": a function named by :class: in a type hint is still that function.
+    return env.get_domain("py").resolve_xref(
+        env, node["refdoc"], app.builder, "obj", name, node, contnode
+    )
 
 
 def setup(app: Sphinx) -> dict[str, Any]:
