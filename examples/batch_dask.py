@@ -185,9 +185,11 @@ def render_images(
 ) -> tuple[planarcal.Calibration, list[str], dict[str, np.ndarray]]:
     """(the calibration, the image paths, each image's true part positions in board mm):
     the paper's camera calibrated from its board, then ``count`` images of random parts,
-    written as PNG to ``folder`` with the truth (truth.csv: image, x_mm, y_mm)."""
+    written as PNG to ``folder`` with the calibration (calib.json) and the truth
+    (truth.csv: image, x_mm, y_mm)."""
     board_view = synth.paper_scene(seed=seed, objects=False).calibration
     calibration = planarcal.Calibration.from_image(board_view.image, synth.PAPER_BOARD)
+    calibration.save(folder / "calib.json")
     effects = synth.PAPER_EFFECTS
     rng = np.random.default_rng(seed)
     paths, truth = [], {}
