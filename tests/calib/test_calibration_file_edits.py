@@ -176,9 +176,13 @@ def test_the_refusal_says_how_to_change_a_file(saved: dict[str, Any], tmp_path: 
     with pytest.raises(
         CalibrationFileError,
         match=r"image_size_px is not what the file was saved with \(its digest does not "
-        r"match\): edited by hand\? .*planarcal check .* --accept-edits",
+        r"match\): edited by hand\? .*planarcal check .* --accept-edits "
+        r"\(docs/guides/calibrating.md, Calibration files\)$",
     ):
         Calibration.load(_write(tmp_path / "edited.json", data))
+    # The page and the section the refusal points at exist.
+    guide = Path(__file__).resolve().parents[2] / "docs" / "guides" / "calibrating.md"
+    assert "\n## Calibration files\n" in guide.read_text(encoding="utf-8")
 
 
 # -- 2. old files -----------------------------------------------------------------------------
@@ -228,6 +232,14 @@ def test_a_lens_is_the_image_size_s(tmp_path: Path) -> None:
     data["image_size_px"] = [1281, 720]
     with pytest.raises(CalibrationFileError, match=r"not the frame of image_size_px \[1281, 720\]"):
         Calibration.load(_write(tmp_path / "old.json", data))
+    # The refusal shows the file's numbers as the file writes them, not NumPy's repr.
+    data["image_size_px"] = [1280, 720]
+    data["lens_model"] = data["lens"]["model"] = "k1k2"
+    with pytest.raises(CalibrationFileError) as refused:
+        Calibration.load(_write(tmp_path / "old.json", data))
+    centre = data["lens"]["centre_px"]
+    assert f"lens.centre_px [{centre[0]!r}, {centre[1]!r}] are not the frame" in str(refused.value)
+    assert "its centre [639.5, 359.5]" in str(refused.value)
 
 
 def test_a_new_file_read_as_an_old_version_is_refused(

@@ -155,7 +155,8 @@ ALWAYS = ("solver", "refine", "homography_world_mm_to_image_px", "points")
 
 EDIT_HINT = (
     "a calibration is changed by planarcal (calibrate or register again); to keep an edit "
-    "made on purpose: planarcal check {path} --accept-edits (README: Calibration files)"
+    "made on purpose: planarcal check {path} --accept-edits "
+    "(docs/guides/calibrating.md, Calibration files)"
 )
 """What a refusal by the digest adds: how to change a file (``{path}``: the file's)."""
 
@@ -1268,7 +1269,7 @@ def _radial_lens(lens_data: Any, lens: str, size: tuple[int, int] | None, source
     for got, want in zip(stored, frame, strict=True):
         if not abs(got - want) <= DERIVED_TOLERANCE_REL * want:
             raise CalibrationFileError(
-                f"{source}: lens.scale_px {stored[0]!r} and lens.centre_px {list(centre)} are "
+                f"{source}: lens.scale_px {stored[0]!r} and lens.centre_px {centre.tolist()} are "
                 f"not the frame of image_size_px {[w, h]} (its half-diagonal {frame[0]!r}"
                 + ("" if len(frame) == 1 else f", its centre {frame[1:]}")
                 + "): the image size or the lens was edited"
