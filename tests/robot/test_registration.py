@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -462,6 +463,26 @@ def test_a_wrong_touch_off_the_line_does_not_fix_the_hand() -> None:
     robot[-1] = _map(truth, BOARD[61:62])[0]  # dot 61 touched for dot 60
     with pytest.raises(pc.RegistrationError, match="through dot 0 and dot 13"):
         RobotFrame.fit(BOARD[dots], robot, dots=dots)
+
+
+def test_spread_touches_with_a_wrong_pair_are_not_called_collinear() -> None:
+    # Three board corners, 118 mm from their main line, one pair 30 mm off: the fit's noise
+    # hides the hand, but the layout is fine, so the refusal blames the pairs, not a line.
+    rng = np.random.default_rng(26)
+    dots = [0, 13, 126]
+    truth = _mirrored_robot(rng)
+    robot = _map(truth, BOARD[dots]) + rng.normal(0, TOUCH_NOISE_MM, (3, 2))
+    robot[1, 0] += 30.0
+    with pytest.raises(pc.RegistrationError) as refused:
+        RobotFrame.fit(BOARD[dots], robot, dots=dots)
+    message = str(refused.value)
+    assert "one line" not in message
+    assert re.search(r"the touches disagree .* touch noise of 1\d\.\d mm", message), message
+    assert re.search(r"\b11\d mm from their main line", message), message
+    assert "check the pairs" in message
+    # The same touches without the wrong pair register.
+    robot[1, 0] -= 30.0
+    assert RobotFrame.fit(BOARD[dots], robot, dots=dots).reflected
 
 
 # -- the judgement covers the layout (issue 21) --------------------------------------------

@@ -23,6 +23,7 @@ from typing import Literal
 import numpy as np
 
 from planarcal.errors import ArgumentError, RegistrationError
+from planarcal.robot.summary import USABLE_MM
 from planarcal.robot.transform_fit import F64, Model
 
 Handedness = Literal["right", "left"]
@@ -31,6 +32,11 @@ HANDEDNESS: tuple[Handedness, ...] = ("right", "left")
 # sqrt(sum d_i^2) / sigma at which the data fix the hand: the wrong hand then needs a 10-sigma
 # noise draw (a wrong hand puts parts hundreds of mm off, so the margin is wide).
 MIN_HAND_Z = 10.0
+
+# Touches this far from their main line (root-sum-square) fix the hand under a touch noise
+# of a usable registration's 1 mm: when they do not, the pairs' disagreement hides the hand,
+# not their layout.
+SPREAD_FOR_HAND_MM = MIN_HAND_Z * USABLE_MM
 
 
 def mirrored_of(handedness: object) -> bool | None:
@@ -85,8 +91,9 @@ def check_hand_determined(
 ) -> None:
     """RegistrationError when the touches leave the hand free under the touch noise
     ``sigma_mm`` (per coordinate) and it was not given (or the model is affine, whose hand is
-    its points'): naming the two touches at the ends of their line (``name`` of an index) and
-    the board's points by ``point_name`` ("dot", "corner").
+    its points'): for touches near a line, naming the two at its ends (``name`` of an index)
+    and the board's points by ``point_name`` ("dot", "corner"); for touches spread well, whose
+    noise only a wrong pair explains, saying so.
     ``mapped_mm``: their board points mapped by the fit, in the robot's mm like the noise (a
     similarity's scale or an affine's stretch changes their distances from the line)."""
     if hand_given and model != "affine":
@@ -94,6 +101,15 @@ def check_hand_determined(
     rss = across_line_mm(mapped_mm)
     if rss >= MIN_HAND_Z * sigma_mm:
         return
+    if rss >= SPREAD_FOR_HAND_MM:
+        raise RegistrationError(
+            f"the touches disagree too much to show whether the robot frame is the board's "
+            f"mirror image: they fit with a touch noise of {sigma_mm:.3g} mm per coordinate, "
+            f"and their {rss:.3g} mm from their main line (root-sum-square) is under "
+            f"{MIN_HAND_Z:g} x that; they are spread well, so a pair is wrong (a {point_name} "
+            f"touched for another, a mistyped coordinate, pairs out of order): check the pairs "
+            f"and touch again"
+        )
     first, last = line_ends(mapped_mm)
     fix = (
         "or give the hand (handedness='right' for a right-handed robot frame with z up, "
