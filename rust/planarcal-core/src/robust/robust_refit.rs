@@ -1,5 +1,5 @@
-//! The final robust refit: iteratively reweighted Gauss-Newton on the one-sided transfer error
-//! with a Cauchy kernel, over the inliers of the least-squares fit (a wider kernel over a
+//! The final robust refit: the refinement's Levenberg-Marquardt loop (refine.rs) on the
+//! one-sided transfer error with a Cauchy loss, over the inliers of the least-squares fit (a wider kernel over a
 //! wider reach with fewer than SHARP_FROM inliers).
 //! Real matches are not Gaussian: a threshold of a few pixels lets in matches that are off by
 //! one or two (a feature a little displaced, a point just off the plane), which a plain
@@ -16,12 +16,10 @@
 //! Errors with noise in both images (the symmetric transfer error, the first-order Sampson
 //! form with the transfer's local scale) changed these by 1 % either way: not kept.
 
-use nalgebra::{Matrix3, SMatrix, SVector};
+use nalgebra::Matrix3;
 
 use super::data::Data;
-
-type Mat8 = SMatrix<f64, 8, 8>;
-type Vec8 = SVector<f64, 8>;
+use crate::refine::{cauchy_refit, from_params, to_params};
 
 /// The kernel's scale in units of the inliers' noise sigma (measured on real pairs over the
 /// inliers: 1.5, 2, 2.5, 3 and 6 sigma; 2 was the best on the warped sets' medians and means).
@@ -37,7 +35,6 @@ const WIDE_REACH: f64 = 2.0;
 const TAIL: f64 = 2.5;
 /// Median of the norm of a 2-D standard normal: sigma = median residual / this.
 const MEDIAN_NORM: f64 = 1.177_410_022_515_474_6;
-const MAX_ITERATIONS: usize = 10;
 /// Fewest points the refit needs (as local optimisation).
 const MIN_POINTS: usize = 8;
 
@@ -67,7 +64,6 @@ pub fn refit(data: &Data, h: &Matrix3<f64>, e2: &[f64], t2: f64) -> Option<Matri
     if !(c > 1e-12) {
         return None;
     }
-    let c2 = c * c;
     // The inliers only: points beyond the threshold pulled the sharp refit off on the most
     // warped views (within 2 thresholds, extreme 0.606 px median against 0.590).
     let reach2 = if sharp {
@@ -75,107 +71,20 @@ pub fn refit(data: &Data, h: &Matrix3<f64>, e2: &[f64], t2: f64) -> Option<Matri
     } else {
         WIDE_REACH * WIDE_REACH * t2
     };
-    let idx: Vec<usize> = (0..e2.len()).filter(|&i| e2[i] <= reach2).collect();
-    if idx.len() < MIN_POINTS {
+    let pts: Vec<[f64; 4]> = (0..e2.len())
+        .filter(|&i| e2[i] <= reach2)
+        .map(|i| {
+            let ([x, y], [u, v]) = (data.src[i], data.dst[i]);
+            [x, y, u, v]
+        })
+        .collect();
+    if pts.len() < MIN_POINTS {
         return None;
     }
-    let hn = data.dst_norm.matrix() * h * data.src_norm.inverse_matrix();
-    let h33 = hn[(2, 2)];
-    if !(h33.abs() > 1e-8 * hn.norm()) {
-        return None;
-    }
-    let hn = hn / h33;
-    let mut p = Vec8::from_column_slice(&[
-        hn[(0, 0)],
-        hn[(0, 1)],
-        hn[(0, 2)],
-        hn[(1, 0)],
-        hn[(1, 1)],
-        hn[(1, 2)],
-        hn[(2, 0)],
-        hn[(2, 1)],
-    ]);
-    let cost = |p: &Vec8| -> f64 {
-        let mut sum = 0.0;
-        for &i in &idx {
-            let Some(r2) =
-                residual(p, data.src[i], data.dst[i]).map(|(_, _, ex, ey, _)| ex * ex + ey * ey)
-            else {
-                return f64::INFINITY;
-            };
-            sum += (r2 / c2).ln_1p();
-        }
-        sum
-    };
-    let mut current = cost(&p);
-    if !current.is_finite() {
-        return None;
-    }
-    for _ in 0..MAX_ITERATIONS {
-        let (mut jtj, mut jtr) = (Mat8::zeros(), Vec8::zeros());
-        for &i in &idx {
-            let [x, y] = data.src[i];
-            let (xh, yh, ex, ey, iw) = residual(&p, data.src[i], data.dst[i])?;
-            let w = 1.0 / (1.0 + (ex * ex + ey * ey) / c2);
-            let jx = Vec8::from_column_slice(&[
-                x * iw,
-                y * iw,
-                iw,
-                0.0,
-                0.0,
-                0.0,
-                -xh * x * iw,
-                -xh * y * iw,
-            ]);
-            let jy = Vec8::from_column_slice(&[
-                0.0,
-                0.0,
-                0.0,
-                x * iw,
-                y * iw,
-                iw,
-                -yh * x * iw,
-                -yh * y * iw,
-            ]);
-            jtj += w * (jx * jx.transpose() + jy * jy.transpose());
-            jtr += w * (jx * ex + jy * ey);
-        }
-        let step = jtj.cholesky()?.solve(&(-jtr));
-        // Halve the step until the robust cost falls.
-        let mut scale = 1.0;
-        let mut accepted = false;
-        for _ in 0..8 {
-            let trial = p + step * scale;
-            let c = cost(&trial);
-            if c < current {
-                p = trial;
-                let gain = current - c;
-                current = c;
-                accepted = gain > 1e-12 * current.max(1e-300);
-                break;
-            }
-            scale *= 0.5;
-        }
-        if !accepted {
-            break;
-        }
-    }
-    let hn = Matrix3::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], 1.0);
+    let p = to_params(&(data.dst_norm.matrix() * h * data.src_norm.inverse_matrix()))?;
+    let hn = from_params(&cauchy_refit(pts, p, c * c)?);
     let h = data.dst_norm.inverse_matrix() * hn * data.src_norm.matrix();
     h.iter().all(|v| v.is_finite()).then_some(h)
-}
-
-/// (x^, y^, x^ - u, y^ - v, 1/w) of the point under p (h33 = 1); None behind the horizon.
-#[inline(always)]
-fn residual(p: &Vec8, [x, y]: [f64; 2], [u, v]: [f64; 2]) -> Option<(f64, f64, f64, f64, f64)> {
-    let w = p[6] * x + p[7] * y + 1.0;
-    if !(w > 0.0) {
-        return None;
-    }
-    let iw = 1.0 / w;
-    let xh = (p[0] * x + p[1] * y + p[2]) * iw;
-    let yh = (p[3] * x + p[4] * y + p[5]) * iw;
-    Some((xh, yh, xh - u, yh - v, iw))
 }
 
 #[cfg(test)]
