@@ -26,7 +26,7 @@ Run from the repository root::
 
     python benches/bench_core.py             # full run, about a minute
     python benches/bench_core.py --quick     # smoke run, a few seconds
-    python benches/bench_core.py --markdown  # the table as Markdown, for the README
+    python benches/bench_core.py --markdown  # as Markdown, for docs/benchmarks/speed.md
 
 Set ``RAYON_NUM_THREADS`` to limit the threads planarcal uses for large batches.
 """

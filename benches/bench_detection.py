@@ -7,7 +7,8 @@ sections:
    14 x 10 board, 1280 x 720, tilted by 0, 15 and 30 degrees, blurred (0.7 and 1.5 px), with
    and without sensor noise (3 grey levels) and a lighting gradient, plus the paper's own
    scene (barrel distortion, vignetting). The board is given with its dot diameter; OpenCV
-   runs its symmetric finder, then its clustering one. This is the table quoted in README.md.
+   runs its symmetric finder, then its clustering one. This is the table quoted in
+   docs/benchmarks/detection.md.
 2. **Variants**: every board of ``synth.board_variants(seed)`` (19 variants: dot sizes 0.15
    to 0.85 of the pitch, both layouts, markers and fiducials, printed marks, 320 x 240 to
    4K, webcam JPEG, tilt, lighting, textured tables), for ``--seeds`` seeds. planarcal gets
@@ -52,7 +53,7 @@ sections:
 Deterministic (fixed seeds). Run from the repository root::
 
     python benches/bench_detection.py             # everything (3 minutes on 2 cores)
-    python benches/bench_detection.py --markdown  # as Markdown, for the README
+    python benches/bench_detection.py --markdown  # as Markdown, for docs/benchmarks/detection.md
     python benches/bench_detection.py --quick     # one seed, fewer scenes, one timing run
     python benches/bench_detection.py --only variants timing  # some sections
     python benches/bench_detection.py --only chessboard      # the chessboards' figures
@@ -207,7 +208,7 @@ def local_residuals(world: F64, image: F64, board: CircleGridBoard) -> F64:
 
 
 # ------------------------------------------------------------------------------------------
-# 1. Centre accuracy on rendered scenes (the table quoted in README.md)
+# 1. Centre accuracy on rendered scenes (the table quoted in docs/benchmarks/detection.md)
 
 
 def accuracy_scenes(quick: bool) -> list[tuple[str, synth.RenderedScene]]:

@@ -56,7 +56,7 @@ Run from the repository root::
 
     python benches/bench_robust.py             # full run, about 2-3 minutes
     python benches/bench_robust.py --quick     # smoke run, a few seconds
-    python benches/bench_robust.py --markdown  # the tables as Markdown, for the README
+    python benches/bench_robust.py --markdown  # as Markdown, for docs/benchmarks/robust.md
 
 Set ``RAYON_NUM_THREADS`` to limit the threads planarcal uses.
 """
