@@ -86,3 +86,16 @@ def test_api_reference_documents_find_homography_with_its_docstring(site: Path) 
     assert doc is not None
     first_paragraph = doc.split("\n\n", 1)[0].replace("``", "")
     assert plain(first_paragraph) in plain(page)
+
+
+def test_api_reference_documents_every_public_name(site: Path) -> None:
+    pages = "".join(p.read_text(encoding="utf-8") for p in (site / "reference").glob("api*.html"))
+    anchors = set(re.findall(r'id="(planarcal\.[\w.]+)"', pages))
+    # The method constants are cv2's numbers, listed in a sentence; the version is a string.
+    listed = {name for name in planarcal.__all__ if name.isupper()} | {"__version__"}
+    missing = [
+        name
+        for name in sorted(set(planarcal.__all__) - listed)
+        if f"planarcal.{name}" not in anchors and f"planarcal.errors.{name}" not in anchors
+    ]
+    assert missing == []
