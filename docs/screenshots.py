@@ -1,4 +1,4 @@
-"""The README's screenshots of `planarcal live`'s page, taken in a headless Chromium driving
+"""The live guide's screenshots of `planarcal live`'s page, taken in a headless Chromium driving
 the page as a user would, on the demo's rendered cell video (the browser test's own steps:
 tests/web/live_server.py's LivePage).
 
@@ -65,7 +65,7 @@ def palette_png(image: np.ndarray) -> bytes:
 
 def write(shots: dict[str, np.ndarray]) -> None:
     """Each shot as name.png, or all as name.jpg when a PNG would be too large (one format
-    for the three, whatever the run: the README names them)."""
+    for the three, whatever the run: the live guide names them)."""
     encoded = {name: palette_png(image) for name, image in shots.items()}
     suffix = ".png"
     if max(len(png) for png in encoded.values()) > MAX_PNG_BYTES:
