@@ -15,7 +15,7 @@ import pytest
 
 import planarcal
 from planarcal import synth
-from planarcal.cli import build_parser
+from planarcal.cli import _out_of_memory, build_parser
 
 BOARD_ARGS = ["--cols", "14", "--rows", "10", "--pitch", "20", "--diameter", "10"]
 
@@ -260,6 +260,55 @@ def test_calibrate_failures_say_what_is_wrong(images: dict[str, Path], tmp_path:
     blocker.write_text("")
     result = _run("calibrate", images["board"], "-o", blocker / "c.json")
     assert result.returncode == 1 and "c.json" in result.stderr
+
+
+# Runs `planarcal calibrate IMAGE` in a process whose address space is capped at what its
+# imports took plus HEADROOM MB: an image too large for the memory left, on any machine.
+OUT_OF_MEMORY_RUN = """
+import resource, sys
+import planarcal.commands.calibrate
+from planarcal.cli import main
+size = next(int(l.split()[1]) * 1024 for l in open("/proc/self/status") if l.startswith("VmSize:"))
+limit = size + int(sys.argv[1]) * 2**20
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+sys.exit(main(["calibrate", sys.argv[2], "-o", sys.argv[3]]))
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="caps memory with RLIMIT_AS, reads /proc")
+def test_an_image_too_large_for_the_memory_is_one_line(tmp_path: Path) -> None:
+    # 16000 x 16000 px: 256 MB decoded, about 1 GB to search for dots. With 100 MB to spare
+    # OpenCV's decoder runs out, with 800 MB the dot search (a MemoryError) or OpenCV's.
+    huge = np.full((16000, 16000), 200, np.uint8)
+    huge[::50, ::50] = 0
+    image = tmp_path / "huge.png"
+    cv2.imwrite(str(image), huge)
+    del huge
+    out = tmp_path / "c.json"
+    for headroom_mb in (100, 800):
+        result = subprocess.run(
+            [sys.executable, "-c", OUT_OF_MEMORY_RUN, str(headroom_mb), str(image), str(out)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            check=False,
+        )
+        assert result.returncode == 1, (headroom_mb, result.stderr)
+        assert "Traceback" not in result.stderr, result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+        assert re.fullmatch(
+            r"planarcal calibrate: error: (out of|not enough) memory.*: free memory \(close "
+            r"other programs\), or give a smaller image \(scaled down, or cropped to the work "
+            r"area\)\n",
+            result.stderr,
+        ), result.stderr
+    assert not out.exists()
+    # Commands that can look at part of an image say so.
+    locating = build_parser().parse_args(["locate", "big.png", "--calibration", "c.json"])
+    assert _out_of_memory("", locating).endswith("or look at part of it with --roi")
+    assert "--roi" not in _out_of_memory(
+        "", build_parser().parse_args(["calibrate", "big.png", "-o", "c.json"])
+    )
 
 
 # ------------------------------------------------------------------------------------------

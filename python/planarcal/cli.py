@@ -2,10 +2,10 @@
 live, demo.
 
 Exit status: 0 on success; 1 when the job fails on its data (no board in view, a file that
-cannot be read or written); 2 for a malformed command line (an unknown option, a value the
-command refuses: a negative --pitch, --cols 0, a bad -o) or one asking for what is not
-installed (`--report` without matplotlib: the line names the extra); 130 when interrupted
-(Ctrl-C). Each failure is one line on stderr, never a traceback.
+cannot be read or written, an image the memory cannot hold); 2 for a malformed command line
+(an unknown option, a value the command refuses: a negative --pitch, --cols 0, a bad -o) or
+one asking for what is not installed (`--report` without matplotlib: the line names the
+extra); 130 when interrupted (Ctrl-C). Each failure is one line on stderr, never a traceback.
 
 This module is light: `planarcal --help` and `--version` import no numpy, OpenCV or core. A
 command's arguments and work live in its module (``planarcal.commands``), imported when the
@@ -161,6 +161,8 @@ def _main(words: list[str]) -> int:
 
 def _run(command: str, work: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
     """Runs a command: its status, or the failure's in one line on stderr."""
+    import cv2  # noqa: PLC0415 (loaded by planarcal.errors already)
+
     from planarcal.errors import MissingDependencyError  # noqa: PLC0415 (errors loads OpenCV)
 
     try:
@@ -180,7 +182,31 @@ def _run(command: str, work: Callable[[argparse.Namespace], int], args: argparse
         # The job failed on its data; anything else is a bug and keeps its traceback.
         print(f"{command}: error: {e}", file=sys.stderr)
         return 1
+    except MemoryError as e:
+        print(f"{command}: error: {_out_of_memory(str(e), args)}", file=sys.stderr)
+        return 1
+    except cv2.error as e:
+        # OpenCV's allocator failing, or a C++ std::bad_alloc it passes on; the latter's code
+        # and err are an earlier error's (OpenCV sets them on the class), so only its text.
+        bad_alloc = str(e) == "std::bad_alloc"
+        if not bad_alloc and e.code != cv2.Error.StsNoMem:
+            raise
+        detail = f"OpenCV: {str(e) if bad_alloc else e.err}"
+        print(f"{command}: error: {_out_of_memory(detail, args)}", file=sys.stderr)
+        return 1
     return code
+
+
+def _out_of_memory(detail: str, args: argparse.Namespace) -> str:
+    """The line for a job the memory could not hold (``detail``: what ran out, if said),
+    with what to try."""
+    if "memory" not in detail.lower():
+        detail = f"out of memory ({detail})" if detail else "out of memory"
+    roi = ", or look at part of it with --roi" if hasattr(args, "roi") else ""
+    return (
+        f"{detail}: free memory (close other programs), or give a smaller image (scaled "
+        f"down, or cropped to the work area){roi}"
+    )
 
 
 if __name__ == "__main__":
