@@ -806,7 +806,6 @@ fn finish(
     threshold: Option<f64>,
 ) -> Result<RobustResult> {
     let n = data.n;
-    let msac = threshold.is_some();
     let threshold = threshold.unwrap_or_else(|| search.t2.sqrt() / data.dst_norm.scale);
     let Some(best) = search.best else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
@@ -846,16 +845,17 @@ fn finish(
     let Some((mut h, mut e2)) = fitted else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     };
-    // MSAC: the robust (Cauchy) refit around the least-squares one (robust_refit.rs).
-    if msac {
-        if let Some(robust) = robust_refit::refit(data, &h, &e2, t2) {
-            if let Ok(robust) = orient_and_scale(&robust, src) {
-                let robust_e2 = squared_errors(&robust, src, dst)?;
-                // It must keep enough inliers (a kernel cannot drag the fit off them).
-                let count = |e2: &[f64]| e2.iter().filter(|&&v| v <= t2).count();
-                if count(&robust_e2) >= 4 {
-                    (h, e2) = (robust, robust_e2);
-                }
+    // The robust (Cauchy) refit around the least-squares one (robust_refit.rs), for LMedS
+    // too: its inliers, within 2.5 robust sigma, have the same heavy tail on real matches
+    // (measured on bench_robust_real's warped photos: median error mild 0.0821 -> 0.0754 px,
+    // strong 0.2401 -> 0.2271, extreme 0.7818 -> 0.6748; board views unchanged).
+    if let Some(robust) = robust_refit::refit(data, &h, &e2, t2) {
+        if let Ok(robust) = orient_and_scale(&robust, src) {
+            let robust_e2 = squared_errors(&robust, src, dst)?;
+            // It must keep enough inliers (a kernel cannot drag the fit off them).
+            let count = |e2: &[f64]| e2.iter().filter(|&&v| v <= t2).count();
+            if count(&robust_e2) >= 4 {
+                (h, e2) = (robust, robust_e2);
             }
         }
     }
