@@ -300,7 +300,9 @@ def test_ctrl_c_stops_it_and_nothing_is_written_without_a_file(
     status, answer = server.call("POST", "/api/save")
     assert status == 409 and "--calibration" in answer["error"]
     code, err = server.stop(signal.SIGINT)
-    assert code == 130 and "stopped" in err  # the CLI's status for Ctrl-C
+    assert code == 130  # the CLI's status for Ctrl-C
+    # One line says so: the server's "stopped", not the CLI's "interrupted" after it.
+    assert err.count("planarcal live: stopped") == 1 and "interrupted" not in err, err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -15,6 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from planarcal.cli import INTERRUPTED
 from planarcal.commands import BOARD_GIVEN, board_arguments, board_from, command_line, positive
 from planarcal.commands.calibrate import add_detector_arguments, detector_options_of
 from planarcal.commands.locate import add_detection_arguments, detection_overrides
@@ -181,6 +182,7 @@ def main(args: argparse.Namespace) -> int:
             if feed is not None:
                 feed.close()
             raise
+        interrupted = False
         try:
             # --polarity / --turned, checked against the board now known (maybe the file's);
             # the session's detector reads this dict.
@@ -191,9 +193,14 @@ def main(args: argparse.Namespace) -> int:
                 log_level="warning",
                 timeout_graceful_shutdown=2,
             )
-            uvicorn.Server(config).run(sockets=[sock])
+            try:
+                uvicorn.Server(config).run(sockets=[sock])
+            except KeyboardInterrupt:
+                # uvicorn stops gracefully on Ctrl-C, then raises it again: the server has
+                # stopped, which the one line below says (not the CLI's "interrupted" too).
+                interrupted = True
         finally:
             session.close()
             sock.close()
             print("planarcal live: stopped", file=sys.stderr)
-    return 0
+    return INTERRUPTED if interrupted else 0
