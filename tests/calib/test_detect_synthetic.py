@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import cv2
@@ -155,6 +156,23 @@ def test_a_board_partly_out_of_view_is_refused() -> None:
     assert scene.dots_in_view(margin_px=0).sum() < BOARD.n_points
     with pytest.raises(BoardNotFoundError, match="fewer dots than the board has"):
         detect_board(scene.image, BOARD)
+
+
+def test_a_board_without_the_origin_marker_described_is_refused_for_its_marker() -> None:
+    # The paper's board has no marker: described with one, its whole grid is seen and only
+    # the marker is missing, so the refusal says so, not "check the board's size".
+    scene = synth.paper_scene(seed=7, objects=False).calibration
+    marked = dataclasses.replace(BOARD, origin_marker=True)
+    with pytest.raises(BoardNotFoundError) as refused:
+        detect_board(scene.image, marked)
+    message = str(refused.value)
+    assert message.startswith(
+        "the 14 x 10 circle grid (140 dots) was found in the 1280 x 720 image, but not its "
+        "origin marker (an enlarged corner dot)."
+    ), message
+    assert "Try: if the board has no origin marker, use --no-origin-marker" in message
+    assert "origin_marker=False in Python" in message
+    assert "board's size" not in message and "no 14 x 10 circle grid" not in message
 
 
 def test_dots_that_cannot_be_measured_are_named_by_their_index_on_the_board() -> None:

@@ -104,6 +104,8 @@ PARTIAL_RULE = (
     "a partial view: the dots in view, with the board's enlarged dots seen among them (and "
     "not seen where they are regular), fit the board in one way only"
 )
+NO_MARKER = "no origin marker"
+"""How the refusal of a whole grid without the origin marker described begins."""
 PATTERN_RULE = (
     "the grid's own pattern has one reading that is not mirrored (an asymmetric grid with an "
     "odd number of rows): dot 0 is its origin"
@@ -896,7 +898,7 @@ def _reading(
     if board.origin_marker:
         found = "several enlarged corner dots" if marker_at else "no enlarged corner dot"
         raise _RefusedError(
-            f"no origin marker: the board has one, but {found} was seen (is the board's "
+            f"{NO_MARKER}: the board has one, but {found} was seen (is the board's "
             "marker setting right?)"
         )
     if len(readings) == 1:
@@ -1077,10 +1079,19 @@ def _explain(
     views: list[PartialView] | None = None,
 ) -> str:
     n = board.n_points
-    lines = [
-        f"no {board.cols} x {board.rows} circle grid ({n} dots) found in the "
-        f"{grey.shape[1]} x {grey.shape[0]} image."
-    ]
+    grid_named = f"{board.cols} x {board.rows} circle grid ({n} dots)"
+    image_named = f"{grey.shape[1]} x {grey.shape[0]} image"
+    # The whole grid found, refused only for the marker described: the marker is the doubt.
+    marker_missed = board.origin_marker and any(
+        r.reason.startswith(NO_MARKER) and len(r.points_px) == n for r in refused
+    )
+    if marker_missed:
+        lines = [
+            f"the {grid_named} was found in the {image_named}, but not its origin marker (an "
+            "enlarged corner dot)."
+        ]
+    else:
+        lines = [f"no {grid_named} found in the {image_named}."]
     counts = []
     grid_hint = ""
     for seen_blobs in seen:
@@ -1129,6 +1140,11 @@ def _explain(
         best = -1  # the hint is given
     if best < 0:
         pass
+    elif marker_missed:
+        hints.append(
+            "if the board has no origin marker, use --no-origin-marker (origin_marker=False "
+            "in Python); if it has one, keep it in view and uncovered"
+        )
     elif best and best < n:
         hints.append(
             f"fewer dots than the board has: is the whole board in view (not cut off or "
