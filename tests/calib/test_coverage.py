@@ -79,10 +79,11 @@ def test_a_board_in_the_top_left_leaves_the_bottom_right_above_the_limit(
     r = cov.region
     assert r is not None and cov.limit_mm == limit and cov.limit_given
     w, h = SIZE
-    # On the far side: it reaches the image's bottom-right corner, and is centred there.
-    assert r.bbox_px[2:] == (w, h)
+    # On the far side: a strip down the right edge, widest at the bottom, where the board
+    # goes next.
+    assert r.bbox_px[2:] == (w, h) and r.bbox_px[1] == 0 and r.bbox_px[0] > w / 2
     assert r.centroid_px[0] > w / 2 and r.centroid_px[1] > h / 2
-    assert r.part == "bottom-right corner"
+    assert r.name == "right edge" and r.part == "bottom-right corner"
     tx, ty = r.target_px
     assert tx > 2 * w / 3 and ty > 2 * h / 3
     # The target is in the region, and far enough in for a board like the one laid.
@@ -100,10 +101,13 @@ def test_a_board_in_the_top_left_leaves_the_bottom_right_above_the_limit(
     # The sentence says where, how large, how bad, against which limit.
     x0, y0, x1, y1 = r.bbox_px
     assert cov.sentence.startswith(
-        f"the bottom-right corner of the image (x {x0}-{x1} px, y {y0}-{y1} px, "
+        f"the right edge of the image (x {x0}-{x1} px, y {y0}-{y1} px, "
         f"{100 * r.share:.0f} % of the image): predicted error up to "
     )
-    assert f"{float(f'{limit:.2g}'):g} mm limit; put the board there next" in cov.sentence
+    assert (
+        f"{float(f'{limit:.2g}'):g} mm limit; put the board in its bottom-right corner next"
+        in cov.sentence
+    )
     assert f"centred near ({tx:.0f}, {ty:.0f}) px" in cov.sentence
 
 
@@ -211,6 +215,50 @@ def test_placements_at_the_four_corners_leave_the_centre() -> None:
     assert abs(r.target_px[0] - (w - 1) / 2) < 20 and abs(r.target_px[1] - (h - 1) / 2) < 20
     assert r.bbox_px[0] > 0 and r.bbox_px[2] < w  # inside the image, not at its edges
     assert cov.sentence.startswith("the centre of the image (")
+
+
+# Regions above a 1 mm limit, each made of the pixels (x, y) where its test holds, a little
+# worse downwards and rightwards so that the board's target lies in a corner of a strip.
+REGIONS: list[tuple[str, Callable[[F64, F64], Any], str, str]] = [
+    ("left strip", lambda x, y: x < 220, "left edge", "bottom-left corner"),
+    ("bottom strip", lambda x, y: y > 560, "bottom edge", "bottom-right corner"),
+    (
+        "right patch",
+        lambda x, y: (x > 1100) & (y > 200) & (y < 600),
+        "right edge",
+        "bottom-right corner",
+    ),
+    ("corner", lambda x, y: np.hypot(x, y - 720) < 250, "bottom-left corner", "bottom-left corner"),
+    # Along two sides, short of the far corners (else it reaches around the placements).
+    (
+        "L",
+        lambda x, y: (x < 200) & (y > 40) | (y > 560) & (x < 1100),
+        "bottom and left edges",
+        "bottom-right corner",
+    ),
+    ("middle", lambda x, y: np.hypot(x - 640, y - 360) < 200, "centre", "centre"),
+]
+
+
+@pytest.mark.parametrize(
+    ("above", "name", "part"), [r[1:] for r in REGIONS], ids=[r[0] for r in REGIONS]
+)
+def test_a_region_is_named_by_its_shape_and_the_board_sent_to_its_target(
+    above: Callable[[F64, F64], Any], name: str, part: str
+) -> None:
+    # A strip down the left side was "the bottom-left corner" (its target's third).
+    placement = [_square(700.0, 100.0)]
+
+    def std(px: F64) -> F64:
+        x, y = px[:, 0], px[:, 1]
+        return np.asarray(np.where(above(x, y), 2.0 + 1e-3 * (x + y), 0.2), np.float64)
+
+    r = coverage(std, (1280, 720), placement, 1.0).region
+    assert r is not None and not r.spread
+    assert (r.name, r.part) == (name, part)
+    assert r.where().startswith(f"the {name} of the image (")
+    where = "there" if name == part else f"{'at' if part.endswith('edge') else 'in'} its {part}"
+    assert r.advice().startswith(f"put the board {where} next")
 
 
 def test_pixels_with_no_place_count_as_above_any_limit() -> None:

@@ -46,6 +46,11 @@ MOST_OF_THE_IMAGE = 0.5
 """A region covering at least this share of the image is described as most of it, around
 the part where a board would best go."""
 
+NAMING_SHARE = 0.5
+"""A region is named by the thirds of the image (its 3 x 3 cells) that hold at least this
+share of what the cell holding most of it holds: a strip down the left side holds its three
+left cells alike (the left edge), a patch in a corner mostly its corner's."""
+
 
 @dataclasses.dataclass(frozen=True)
 class Region:
@@ -82,23 +87,36 @@ class Region:
         columns, rows = self.mask.any(axis=0).sum(), self.mask.any(axis=1).sum()
         return self.share >= MOST_OF_THE_IMAGE or bool(columns > 0.9 * nx and rows > 0.9 * ny)
 
+    @property
+    def name(self) -> str:
+        """The part of the image the region lies in (see NAMING_SHARE): a corner
+        ("bottom-left corner"), a side ("left edge": a strip along it, or a patch on it), the
+        centre; one along several sides, "bottom and left edges"; else "middle"."""
+        ny, nx = self.mask.shape
+        rows, cols = np.nonzero(self.mask)
+        cells = np.zeros((3, 3))
+        np.add.at(cells, (_thirds(rows, ny), _thirds(cols, nx)), 1.0)
+        return _named(cells >= NAMING_SHARE * cells.max())
+
     def where(self) -> str:
         """The region named in words with its extent: "the bottom-right corner of the image
-        (x 900-1280 px, y 540-720 px, 14 % of the image)"; one spread over the image, "most
-        of the image (...)" or "the image around the placements (...)"."""
+        (x 900-1280 px, y 540-720 px, 14 % of the image)", "the left edge of the image (x
+        0-230 px, y 0-720 px, 18 % ...)"; one spread over the image, "most of the image
+        (...)" or "the image around the placements (...)"."""
         x0, y0, x1, y1 = self.bbox_px
         extent = f"x {x0}-{x1} px, y {y0}-{y1} px, {_percent(self.share)}"
         if self.share >= MOST_OF_THE_IMAGE:
             return f"most of the image ({extent})"
         if self.spread:
             return f"the image around the placements ({extent})"
-        return f"the {self.part} of the image ({extent})"
+        return f"the {self.name} of the image ({extent})"
 
     def advice(self) -> str:
         """Where to put the board next: "put the board there next, centred near (1183,
-        623) px" (in a region spread over the image, which part of it)."""
+        623) px"; where the region is more than that part (spread over the image, a strip
+        along a side), which part of it."""
         where = "there"
-        if self.spread:
+        if self.spread or self.name != self.part:
             where = f"{'at' if self.part.endswith('edge') else 'in'} its {self.part}"
         tx, ty = self.target_px
         return f"put the board {where} next, centred near ({tx:.0f}, {ty:.0f}) px"
@@ -425,8 +443,38 @@ def _part(px: tuple[float, float], size: tuple[int, int]) -> str:
     w, h = size
     col = min(2, int(3.0 * (px[0] + 0.5) / w))
     row = min(2, int(3.0 * (px[1] + 0.5) / h))
-    vertical = ("top", None, "bottom")[row]
-    horizontal = ("left", None, "right")[col]
+    return _part_name(("top", None, "bottom")[row], ("left", None, "right")[col])
+
+
+def _thirds(index: NDArray[np.intp], n: int) -> NDArray[np.intp]:
+    """The third (0, 1, 2) of an axis of `n` evenly spaced nodes holding each node `index`."""
+    return np.minimum(2, (3.0 * (index + 0.5) / n).astype(np.intp))
+
+
+def _named(held: NDArray[np.bool_]) -> str:
+    """The name of the part of the image made of the `held` thirds (3 x 3, rows down)."""
+    rows, cols = np.flatnonzero(held.any(axis=1)), np.flatnonzero(held.any(axis=0))
+    vertical = ("top", None, "bottom")
+    horizontal = ("left", None, "right")
+    if len(rows) == 1 and len(cols) == 1:
+        return _part_name(vertical[rows[0]], horizontal[cols[0]])
+    # Along one side: a strip, or a patch on it reaching over two of its thirds.
+    if len(cols) == 1 and horizontal[cols[0]]:
+        return f"{horizontal[cols[0]]} edge"
+    if len(rows) == 1 and vertical[rows[0]]:
+        return f"{vertical[rows[0]]} edge"
+    # Along several sides (an L, a U): those with two of their three thirds held.
+    along = (("top", held[0]), ("bottom", held[2]), ("left", held[:, 0]), ("right", held[:, 2]))
+    sides = [side for side, cells in along if cells.sum() >= 2]
+    if len(sides) == 1:
+        return f"{sides[0]} edge"
+    if sides:
+        return f"{', '.join(sides[:-1])} and {sides[-1]} edges"
+    return "centre" if held[1, 1] else "middle"
+
+
+def _part_name(vertical: str | None, horizontal: str | None) -> str:
+    """One third across and one down: a corner, an edge or the centre."""
     if vertical and horizontal:
         return f"{vertical}-{horizontal} corner"
     if vertical or horizontal:
