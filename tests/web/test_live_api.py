@@ -292,18 +292,25 @@ def test_off_loopback_every_request_needs_the_token(video: LiveVideo, tmp_path: 
             connection.close()
 
 
+@pytest.mark.parametrize(("sig", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 0)])
 def test_ctrl_c_stops_it_and_nothing_is_written_without_a_file(
-    video: LiveVideo, tmp_path: Path
+    video: LiveVideo, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sig: int, status: int
 ) -> None:
-    server = LiveServer(["--source", str(video.path), *VIDEO_BOARD_ARGS], tmp_path)
+    cwd, temp = tmp_path / "cwd", tmp_path / "temp"
+    cwd.mkdir()
+    temp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(temp))  # where the session keeps its working files
+    server = LiveServer(["--source", str(video.path), *VIDEO_BOARD_ARGS], cwd)
     server.wait_for("a frame", lambda s: s["stats"]["frames"] > 0)
-    status, answer = server.call("POST", "/api/save")
-    assert status == 409 and "--calibration" in answer["error"]
-    code, err = server.stop(signal.SIGINT)
-    assert code == 130  # the CLI's status for Ctrl-C
-    # One line says so: the server's "stopped", not the CLI's "interrupted" after it.
+    saved, answer = server.call("POST", "/api/save")
+    assert saved == 409 and "--calibration" in answer["error"]
+    assert list(temp.iterdir()) != []
+    code, err = server.stop(sig)
+    assert code == status  # 130: the CLI's status for Ctrl-C
+    # One line says so: the server's "stopped", not the CLI's "interrupted" after it; and
+    # SIGTERM too stops it cleanly, its working files removed.
     assert err.count("planarcal live: stopped") == 1 and "interrupted" not in err, err
-    assert list(tmp_path.iterdir()) == []
+    assert list(cwd.iterdir()) == [] and list(temp.iterdir()) == []
 
 
 def test_controllers_get_the_watched_frames_and_the_page_lists_them(

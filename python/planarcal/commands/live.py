@@ -1,19 +1,23 @@
 """`planarcal live`: the live setup page (planarcal.web) served from a source's frames.
 
 The URL is the first line printed (with the token when one is needed), once the port is
-bound. Ctrl-C or SIGTERM stop the server (exit status 130 for Ctrl-C, as every command): a
-change being made (a save) finishes first, and every file is written atomically, so no
-half-written file is left."""
+bound. Ctrl-C or SIGTERM stop the server, said in one line (exit status 130 for Ctrl-C, as
+every command, 0 for SIGTERM): a change being made (a save) finishes first, and every file
+is written atomically, so no half-written file is left."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ipaddress
 import secrets
+import signal
 import socket
 import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from planarcal.cli import INTERRUPTED
 from planarcal.commands import BOARD_GIVEN, board_arguments, board_from, command_line, positive
@@ -117,6 +121,29 @@ def _bound_socket(host: str, port: int) -> socket.socket:
     return sock
 
 
+class _TerminatedError(Exception):
+    """SIGTERM, raised: its default action would end the process at once (uvicorn sends it
+    again once stopped), leaving the session open and its temporary folder behind."""
+
+
+@contextlib.contextmanager
+def _sigterm_raised() -> Iterator[None]:
+    """SIGTERM raises _TerminatedError here (in the main thread; elsewhere it stays as it is)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        raise _TerminatedError
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _url(host: str, sock: socket.socket, token: str | None) -> str:
     port = sock.getsockname()[1]
     shown = socket.gethostname() if host in ("0.0.0.0", "::") else host
@@ -187,18 +214,21 @@ def main(args: argparse.Namespace) -> int:
             # --polarity / --turned, checked against the board now known (maybe the file's);
             # the session's detector reads this dict.
             session.options.update(detector_options_of(args, session.board))
-            print(_url(args.host, sock, token), flush=True)
             config = uvicorn.Config(
                 create_app(session, token=token),
                 log_level="warning",
                 timeout_graceful_shutdown=2,
             )
             try:
-                uvicorn.Server(config).run(sockets=[sock])
+                with _sigterm_raised():
+                    print(_url(args.host, sock, token), flush=True)
+                    uvicorn.Server(config).run(sockets=[sock])
             except KeyboardInterrupt:
                 # uvicorn stops gracefully on Ctrl-C, then raises it again: the server has
                 # stopped, which the one line below says (not the CLI's "interrupted" too).
                 interrupted = True
+            except _TerminatedError:
+                pass  # stopped as asked, the same way
         finally:
             session.close()
             sock.close()
