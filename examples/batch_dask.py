@@ -190,23 +190,11 @@ def render_images(
     board_view = synth.paper_scene(seed=seed, objects=False).calibration
     calibration = planarcal.Calibration.from_image(board_view.image, synth.PAPER_BOARD)
     calibration.save(folder / "calib.json")
-    effects = synth.PAPER_EFFECTS
     rng = np.random.default_rng(seed)
     paths, truth = [], {}
     for k in range(count):
-        scene = synth.render_scene(
-            synth.PAPER_CAMERA,
-            synth.PAPER_POSE,
-            board=None,
-            objects=random_parts(rng),
-            seed=seed + k,
-            table_grey=effects["table_grey"],
-            metal_grey=effects["metal_grey"],
-            blur_sigma_px=effects["blur_sigma_px"],
-            noise_sigma=effects["noise_sigma"],
-            lighting_gradient=effects["lighting_gradient"],
-            lighting_angle_deg=effects["lighting_angle_deg"],
-            vignette=effects["vignette"],
+        scene = synth.render_paper_look(
+            synth.PAPER_CAMERA, synth.PAPER_POSE, None, random_parts(rng), seed + k
         )
         path = str(folder / f"parts-{k:04d}.png")
         cv2.imwrite(path, scene.image)

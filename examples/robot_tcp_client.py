@@ -134,31 +134,13 @@ def render_cell(folder: Path, seed: int) -> tuple[Path, Path, list[np.ndarray]]:
             dataclasses.replace(p, position_mm=(p.position_mm[0] + shift, p.position_mm[1]))
             for p in synth.PAPER_OBJECTS
         ]
-        frame = render_paper_scene(parts, seed + k)
+        # The paper's camera and lighting over the parts, the board taken away.
+        frame = synth.render_paper_look(synth.PAPER_CAMERA, synth.PAPER_POSE, None, parts, seed + k)
         for _ in range(HOLD_FRAMES):
             writer.write(frame.image)
             truth.append(frame.object_centroids_mm)
     writer.release()
     return calibration_file, video, truth
-
-
-def render_paper_scene(parts: list[synth.SceneObject], seed: int) -> synth.RenderedScene:
-    """The paper's camera and lighting over ``parts``, the board taken away."""
-    effects = synth.PAPER_EFFECTS
-    return synth.render_scene(
-        synth.PAPER_CAMERA,
-        synth.PAPER_POSE,
-        board=None,
-        objects=parts,
-        seed=seed,
-        table_grey=effects["table_grey"],
-        metal_grey=effects["metal_grey"],
-        blur_sigma_px=effects["blur_sigma_px"],
-        noise_sigma=effects["noise_sigma"],
-        lighting_gradient=effects["lighting_gradient"],
-        lighting_angle_deg=effects["lighting_angle_deg"],
-        vignette=effects["vignette"],
-    )
 
 
 class Server(NamedTuple):

@@ -37,7 +37,7 @@ The modules, from the bottom up:
 * ``marks``: :func:`printed_marks` beside the dots.
 * ``render``: :func:`render_scene` and :class:`RenderedScene`: how it renders, and how
   accurately.
-* ``paper``: the paper's setup (``PAPER_*``), :func:`paper_scene`,
+* ``paper``: the paper's setup (``PAPER_*``), :func:`paper_scene`, :func:`render_paper_look`,
   :func:`random_paper_scene`.
 * ``corpus``: :data:`BOARD_VARIANTS`, :func:`board_variant`, :func:`board_variants`.
 * ``cell``: :func:`render_cell`, a work cell several boards wide with the board photographed
@@ -76,6 +76,7 @@ from planarcal.synth.paper import (
     PaperScene,
     paper_scene,
     random_paper_scene,
+    render_paper_look,
 )
 from planarcal.synth.render import RenderedScene, render_scene
 
@@ -118,6 +119,7 @@ __all__ = [
     "relative_pose",
     "render_cell",
     "render_copies",
+    "render_paper_look",
     "render_scene",
     "write_live_video",
 ]

@@ -128,7 +128,7 @@ def paper_scene(
     seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(2)]
 
     def render(board: Board | None, things: Sequence[SceneObject], seed: int) -> RenderedScene:
-        return _paper_render(camera, PAPER_POSE, board, things, seed, color=color)
+        return render_paper_look(camera, PAPER_POSE, board, things, seed, color=color)
 
     calibration = render(board, (), seeds[0])
     scene = render(None, PAPER_OBJECTS if objects else (), seeds[1])
@@ -172,7 +172,7 @@ def random_paper_scene(
     if not 0.0 <= tilt <= 60.0:
         raise ArgumentError(f"max_tilt_deg must be 0 to 60, got {max_tilt_deg!r}")
     pose = random_board_pose(rng, PAPER_CAMERA.focal_px / scale, tilt, shown)
-    return _paper_render(PAPER_CAMERA, pose, shown, objects, int(rng.integers(0, 2**31)))
+    return render_paper_look(PAPER_CAMERA, pose, shown, objects, int(rng.integers(0, 2**31)))
 
 
 def random_board_pose(
@@ -200,7 +200,7 @@ def random_board_pose(
     )
 
 
-def _paper_render(
+def render_paper_look(
     camera: CameraModel,
     pose: PlanePose,
     board: Board | None,
@@ -209,7 +209,8 @@ def _paper_render(
     *,
     color: bool = False,
 ) -> RenderedScene:
-    """render_scene with the paper scene's tones and effects (PAPER_EFFECTS)."""
+    """render_scene with the paper scene's tones and effects (PAPER_EFFECTS): ``board=None``
+    and parts for an image of the parts alone, as a production camera sees them."""
     e = PAPER_EFFECTS
     return render_scene(
         camera,

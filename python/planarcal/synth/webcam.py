@@ -22,9 +22,9 @@ from planarcal.synth.objects import SceneObject
 from planarcal.synth.paper import (
     PAPER_BOARD,
     PaperScene,
-    _paper_render,
     paper_board,
     random_board_pose,
+    render_paper_look,
 )
 
 WEBCAM_FOCAL_PX_PER_WIDTH = 1070.0 / 1280.0
@@ -137,6 +137,6 @@ def random_webcam_scene(
     pose = random_board_pose(rng, float(camera.focal_px) / scale, max_tilt_deg, shown)
     things = scattered_parts(rng, parts)
     seeds = rng.integers(0, 2**31, 2)
-    calibration = _paper_render(camera, pose, shown, (), int(seeds[0]))
-    objects = _paper_render(camera, pose, None, things, int(seeds[1]))
+    calibration = render_paper_look(camera, pose, shown, (), int(seeds[0]))
+    objects = render_paper_look(camera, pose, None, things, int(seeds[1]))
     return PaperScene(calibration, objects)
