@@ -1,6 +1,6 @@
 //! The final robust refit: the refinement's Levenberg-Marquardt loop (refine.rs) on the
-//! one-sided transfer error with a Cauchy loss, over the inliers of the least-squares fit (a wider kernel over a
-//! wider reach with fewer than SHARP_FROM inliers).
+//! one-sided transfer error with a Cauchy loss, over the inliers of the least-squares fit (a
+//! wider kernel over a wider reach with fewer than SHARP_FROM inliers).
 //! Real matches are not Gaussian: a threshold of a few pixels lets in matches that are off by
 //! one or two (a feature a little displaced, a point just off the plane), which a plain
 //! least-squares fit weighs fully. The kernel runs only where the inliers' residuals have a
@@ -107,7 +107,8 @@ mod tests {
     }
 
     /// (LS error, robust error, whether the kernel ran) to the truth, mean over the points,
-    /// with noise sigma 0.3 px and a share `tail` of the points at sigma 1.5 px (the gate wants a clear tail).
+    /// with noise sigma 0.3 px and a share `tail` of the points at sigma 1.5 px (the gate wants
+    /// a clear tail).
     fn fits(seed: u64, tail: f64) -> (f64, f64, bool) {
         let truth = Matrix3::from_row_slice(&TRUTH);
         let mut rng = Pcg32::new(seed, 1);
