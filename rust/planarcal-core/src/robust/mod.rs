@@ -824,18 +824,23 @@ fn settle(
     Ok(fitted)
 }
 
-/// A search's model polished in the caller's units: settled on its inliers, widened with few
+/// The model's inliers (normalised units), in index order.
+fn sorted_inliers(data: &Data, h: &[f64; 9], t2: f64) -> Result<Vec<u32>> {
+    let mut idx = data.inliers(h, t2)?;
+    idx.sort_unstable();
+    Ok(idx)
+}
+
+/// A search's model polished in the caller's units: settled on its inliers `idx`, widened with few
 /// of them, then the robust refit; with each point's squared error. None if it falls apart.
 fn polish(
     data: &Data,
     src: &[Point],
     dst: &[Point],
     model: &Model,
-    search_t2: f64,
+    idx: Vec<u32>,
     t2: f64,
 ) -> Result<Option<(Matrix3<f64>, Vec<f64>)>> {
-    let mut idx = data.inliers(&model.h, search_t2)?;
-    idx.sort_unstable();
     let mut fitted = settle(src, dst, idx, data.denormalize(&model.h), t2, !model.fitted)?;
     for widen in WIDEN {
         let Some((h, e2)) = &fitted else {
@@ -907,7 +912,8 @@ fn finish(
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     }
     let t2 = threshold * threshold;
-    let Some((mut h, mut e2)) = polish(data, src, dst, &best, search.t2, t2)? else {
+    let best_idx = sorted_inliers(data, &best.h, search.t2)?;
+    let Some((mut h, mut e2)) = polish(data, src, dst, &best, best_idx.clone(), t2)? else {
         return RobustResult::failure(n, search.iterations, threshold, search.lo_runs);
     };
     // A rival the search set aside at a cost close to the best's may polish to the lower
@@ -920,7 +926,14 @@ fn finish(
         .runner_up
         .filter(|r| r.cost <= RIVAL_COST * best.cost)
     {
-        if let Some((h2, e22)) = polish(data, src, dst, &r, search.t2, t2)? {
+        // The same inliers settle to the same fit: nothing to polish.
+        let idx = sorted_inliers(data, &r.h, search.t2)?;
+        let polished = if idx == best_idx {
+            None
+        } else {
+            polish(data, src, dst, &r, idx, t2)?
+        };
+        if let Some((h2, e22)) = polished {
             let cost = |e2: &[f64]| e2.iter().map(|&v| v.min(t2)).sum::<f64>();
             if cost(&e22) < cost(&e2) {
                 (h, e2) = (h2, e22);
