@@ -27,6 +27,10 @@ Data (real photographs only, read at run time from ``../shared/data/real`` or
                  25%); then gain, gamma, blur, noise and JPEG re-encoding. The truth is
                  exact. Error: mean distance between H_est(q) and H_true(q) over a 16 x 12
                  grid of the source image, the points that land inside the warped image.
+  public pairs   public photographs of a plane with a published ground truth, shipped in
+                 benches/data (sources and licences in each folder's SOURCES.md): the
+                 Oxford Graffiti 1 and 3 (a 30-degree change of viewpoint), each way. Error
+                 as for the warps.
 
 Contenders: ``planarcal.estimate_homography_robust`` (seed = pair number), the same with
 ``scores`` (PROSAC order), ``planarcal.findHomography`` with each robust flag it takes
@@ -124,6 +128,10 @@ BOARD_SETS: dict[str, pc.Board] = {
     "charuco-rlav440-4x4-20x20": pc.CharucoBoard(20, 20, 4, 3.2, "DICT_4X4_1000"),
 }
 WARP_FOLDERS = (*BOARD_SETS, "ucl-dotty-metal")
+# Public planar pairs with a published ground truth, shipped beside this script (see its
+# SOURCES.md): (folder, image a, image b, FileStorage file, node), H mapping a to b.
+PUBLIC = Path(__file__).resolve().parent / "data"
+PUBLIC_PAIRS = (("oxford-graffiti", "graf1.png", "graf3.png", "H1to3p.xml", "H13"),)
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
 
 
@@ -541,6 +549,30 @@ def warped_photos(real: Path, settings: Settings, log: Callable[[str], None]) ->
     return sets
 
 
+def public_pairs(log: Callable[[str], None]) -> DataSet:
+    """Each public pair both ways (a -> b under H, b -> a under H^-1: different matches, since
+    the ratio test is not symmetric); error over a grid of the source image, as for the warps."""
+    data = DataSet("public pairs")
+    for folder, name_a, name_b, truth_file, node in PUBLIC_PAIRS:
+        path = PUBLIC / folder
+        log(f"public pairs: {folder}")
+        storage = cv2.FileStorage(str(path / truth_file), cv2.FILE_STORAGE_READ)
+        H = np.asarray(storage.getNode(node).mat(), dtype=np.float64)
+        storage.release()
+        greys = [cv2.imread(str(path / n), cv2.IMREAD_GRAYSCALE) for n in (name_a, name_b)]
+        features = [sift_features(g) for g in greys]
+        for (src, dst), truth, (name_src, name_dst) in (
+            ((0, 1), H, (name_a, name_b)),
+            ((1, 0), np.linalg.inv(H), (name_b, name_a)),
+        ):
+            height, width = greys[src].shape
+            grid_src, grid_dst = grid_in_view(truth / truth[2, 2], width, height)
+            problem = sift_problem(features[src], features[dst])
+            real_pair = RealPair(src, dst, problem, truth / truth[2, 2], grid_src, grid_dst)
+            data.pairs.append(Pair(f"{folder} {name_src} -> {name_dst}", real_pair))
+    return data
+
+
 # --------------------------------------------------------------------------------------------
 # Measuring
 
@@ -815,7 +847,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if poselib is None:
         out.note("PoseLib does not import (pip install poselib): its row is left out")
 
-    data_sets = [board_views(real, settings, log), *warped_photos(real, settings, log)]
+    data_sets = [
+        board_views(real, settings, log),
+        *warped_photos(real, settings, log),
+        public_pairs(log),
+    ]
     data_sets = [d for d in data_sets if d.pairs]
     out.heading("Data: pairs, SIFT matches (median, range), share within 3 px of the truth")
     out.table(["data set", "pairs", "matches", "true-inlier share (range)"], data_rows(data_sets))
