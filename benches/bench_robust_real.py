@@ -51,7 +51,7 @@ PASS/FAIL lines state issue 25's targets per data set; the script always exits 0
 
 Run from the repository root::
 
-    python benches/bench_robust_real.py                # full run, about 4 minutes on 2 cores
+    python benches/bench_robust_real.py                # full run, about 70 s on 2 cores
     python benches/bench_robust_real.py --quick        # smoke run
     python benches/bench_robust_real.py --markdown --figure /tmp/robust_real.png
 """
