@@ -246,6 +246,19 @@ def test_marker_board_partly_covered_leaves_out_the_covered_corners() -> None:
     assert np.max(np.hypot(*(det.image_points - scene.truth[det.ids]).T)) < 0.15
 
 
+def test_a_board_described_with_a_marker_it_lacks_is_told_how_to_describe_it() -> None:
+    plain = ChessboardBoard(9, 6, 25.0)
+    scene = render(plain, tilt_deg=20.0, blur_px=0.7, noise=2.0)
+    with pytest.raises(BoardNotFoundError) as info:
+        detect_chessboard(scene.image, dataclasses.replace(plain, origin_marker=True))
+    message = str(info.value)
+    assert "No origin marker was read" in message
+    assert "--no-origin-marker" in message
+    assert "origin_marker=False" in message
+    # Described as it is, the same image is read.
+    assert len(detect_chessboard(scene.image, plain).ids) == plain.n_points
+
+
 def test_plain_board_partly_out_of_view_is_refused_as_ambiguous() -> None:
     board = ChessboardBoard(11, 8, 25.0)
     scene = render(board, fill=0.8, tilt_deg=25.0, shift_x=450.0, blur_px=0.7, noise=2.0)

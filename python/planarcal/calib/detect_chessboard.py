@@ -924,8 +924,9 @@ def _explain(board: ChessboardBoard, finder: _Finder, refusals: list[str]) -> st
             )
         elif board.origin_marker:
             lines.append(
-                "No origin marker was read on it: is the marker (three dots about the board's "
-                "middle) in view and not covered, and does the board have one?"
+                "No origin marker was read on it: if the board has none, use --no-origin-marker "
+                "(origin_marker=False in Python); if it has one (three dots about the board's "
+                "middle), keep it in view and uncovered."
             )
             if n_seen != board.n_points and not at_edge:
                 lines.append("Or " + other_size)
