@@ -141,19 +141,22 @@ def msac_cost(h: F64, src: F64, dst: F64) -> float:
     return float(np.minimum(e2, THRESHOLD**2).sum())
 
 
-def plane_and_offset_patch(seed: int, shift: float) -> tuple[F64, F64, F64]:
+def plane_and_offset_patch(
+    seed: int, shift: float, outliers: int = 200
+) -> tuple[F64, F64, F64, F64]:
     """300 matches of a plane; 130 in its bottom-left corner displaced by `shift` px (a patch
-    just off the plane); 200 outliers. A compromise between plane and patch fits most of both
-    within the threshold, but costs more than the plane's own fit: (src, dst, that fit)."""
+    just off the plane); `outliers` outliers. A compromise between plane and patch fits most of
+    both within the threshold, but costs more than the plane's own fit: (src, dst, that fit,
+    the true H)."""
     rng = np.random.default_rng(seed)
     truth = view(rng)
     plane = rng.uniform((0, 0), (W, H), (300, 2))
     patch = rng.uniform((0, 500), (400, H), (130, 2))
-    src = np.vstack([plane, patch, rng.uniform((0, 0), (W, H), (200, 2))])
-    dst = project(truth, src) + rng.normal(0, 0.7, (630, 2))
+    src = np.vstack([plane, patch, rng.uniform((0, 0), (W, H), (outliers, 2))])
+    dst = project(truth, src) + rng.normal(0, 0.7, (430 + outliers, 2))
     dst[300:430] += (shift, -0.6 * shift)
-    dst[430:] = rng.uniform((0, 0), (W, H), (200, 2))
-    return src, dst, planarcal.estimate_homography(src[:300], dst[:300], refine=True)
+    dst[430:] = rng.uniform((0, 0), (W, H), (outliers, 2))
+    return src, dst, planarcal.estimate_homography(src[:300], dst[:300], refine=True), truth
 
 
 @pytest.mark.parametrize(("shift", "at_least"), [(8.0, 14), (10.0, 18)])
@@ -165,11 +168,30 @@ def test_the_search_prefers_the_plane_to_a_compromise_with_a_patch_off_it(
     twice the threshold, without rivals of another structure, found 9 and 15)."""
     found = 0
     for seed in range(20):
-        src, dst, plane = plane_and_offset_patch(seed, shift)
+        src, dst, plane, _ = plane_and_offset_patch(seed, shift)
         r = planarcal.estimate_homography_robust(src, dst, THRESHOLD, seed=seed)
         assert r.H is not None
         found += msac_cost(r.H, src, dst) <= 1.005 * msac_cost(plane, src, dst)
     assert found >= at_least
+
+
+@pytest.mark.parametrize("shift", [5.0, 6.0])
+def test_lmeds_keeps_to_the_plane_beside_a_patch_just_off_it(shift: float) -> None:
+    """LMedS on a plane (300 matches), a patch of 130 displaced by 5-6 px and 80 outliers:
+    within 1.5x the error of the plane's own fit in at least 17 of 20 problems (18 and 19 are;
+    one start and the classical threshold, 2.5 robust sigma of all points, gave 0 and 9, a
+    compromise with the patch; OpenCV's LMEDS 0 and 0)."""
+    within = 0
+    for seed in range(20):
+        src, dst, plane, truth = plane_and_offset_patch(seed, shift, outliers=80)
+        r = planarcal.estimate_homography_robust(src, dst, THRESHOLD, seed=seed, method="lmeds")
+        assert r.H is not None
+        on_plane = project(truth, src[:300])
+        errors = [
+            np.linalg.norm(project(h, src[:300]) - on_plane, axis=1).mean() for h in (r.H, plane)
+        ]
+        within += errors[0] <= 1.5 * errors[1]
+    assert within >= 17
 
 
 def parity_problem(seed: int, fraction: float) -> Outlying:
