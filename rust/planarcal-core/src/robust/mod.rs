@@ -187,8 +187,8 @@ const MAX_CONCENTRATION_STEPS: usize = 5;
 /// 4 sigma cost 3-7 % of the error to the truth on 500-point problems (tests/homography's
 /// parity problems), so the threshold keeps all but 4e-5 of Gaussian inliers
 /// (exp(-4.5^2 / 2)). Measured with ten starts over six seeds (bench_robust_real, median px):
-/// at 4.5 sigma the public pairs 0.54-0.56, board views 2.1-3.1 (the classical 2.5 sigma of
-/// all points: 2.0 and 3.7-3.8), every parity problem as accurate as OpenCV's LMEDS or the
+/// at 4.5 sigma the public pairs 0.54-0.56, board views 2.1-3.1 (the classical threshold:
+/// 2.00-2.01 and 3.65-3.68), every parity problem as accurate as OpenCV's LMEDS or the
 /// gold-standard fit; at 3.5 and 4 sigma, 13 and 3 of 120 were not.
 const INLIER_SIGMAS: f64 = 4.5;
 const SCALE_ROUNDS: usize = 5;
@@ -824,7 +824,7 @@ fn lmeds_search(
 /// median squared residual, sigma^2 chi2(2) having the median 2 ln 2 sigma^2), at most
 /// SCALE_ROUNDS times. The median over all points sits among the outliers' residuals when
 /// they are many, so the classical threshold reaches past structures a few sigma off the
-/// plane (on the Graffiti pair: 6.5-8 px, past a cluster 4.4-7.6 px off; then 2.8-3.3 px).
+/// plane (on the Graffiti pair: 6.5-8 px, past a cluster 4.4-7.6 px off; then 2.7 and 3.6-3.7 px).
 fn lmeds_threshold2(data: &Data, b: &Model) -> Result<f64> {
     let factor = 1.0 + 5.0 / (data.n as f64 - 4.0).max(1.0);
     let mut t2 = (2.5 * 1.4826 * factor).powi(2) * b.cost;
