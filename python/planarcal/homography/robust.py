@@ -62,7 +62,8 @@ def estimate_homography_robust(
     sample checks, as OpenCV counts them). ``scores`` (one number per
     correspondence, higher is better, e.g. a descriptor match's ratio-test margin) make the
     search sample the best correspondences first (PROSAC). ``method="lmeds"`` minimises the
-    median squared residual and ignores ``threshold``.
+    median squared residual and ignores ``threshold``; the result's ``threshold`` is the one it
+    derives from its inliers' scale.
 
     A problem in which no model has more support than chance returns a result with
     ``H=None`` and ``stop_reason="no_consensus"``. Bad input raises ``ArgumentError`` (a

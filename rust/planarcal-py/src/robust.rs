@@ -44,7 +44,7 @@ pub struct RobustResult {
     /// RMS transfer error of the inliers under H, in destination units (NaN without H).
     #[pyo3(get)]
     rms_inlier_error: f64,
-    /// The inlier threshold of the mask (LMedS derives it from the median residual).
+    /// The inlier threshold of the mask (LMedS derives it from its inliers' scale).
     #[pyo3(get)]
     threshold: f64,
     /// New best models that were locally optimised.
