@@ -178,8 +178,8 @@ const GUIDE_MIN_POINTS: usize = 500;
 
 /// LMedS: the lowest-median minimal models optimised by concentration steps (FAST-LTS's ten
 /// starts), and the most steps from each. Measured on bench_robust_real over six seeds: one
-/// start gave 0.54-2.19 px on the public pairs, ten 0.51-0.54 (the other sets within noise
-/// or better).
+/// start gave 0.55-2.03 px on the public pairs, three 0.55-1.45, ten 0.54-0.56 (the other
+/// sets within noise).
 const LMEDS_STARTS: usize = 10;
 const MAX_CONCENTRATION_STEPS: usize = 5;
 /// LMedS's inlier threshold in sigmas of its inliers' noise (lmeds_threshold2), and the most
@@ -820,11 +820,12 @@ fn lmeds_search(
 /// LMedS's squared inlier threshold for its model `b` (normalised units). It starts from the
 /// classical rule (Rousseeuw: 2.5 robust sigma, sigma = 1.4826 (1 + 5 / (n - 4)) sqrt(median),
 /// as OpenCV's), then takes sigma from the residuals within the threshold instead of from all
-/// points, while that narrows it: INLIER_SIGMAS of the inliers' sigma (per coordinate, from their
-/// median squared residual, sigma^2 chi2(2) having the median 2 ln 2 sigma^2), at most
+/// points, while that narrows it: INLIER_SIGMAS of the inliers' sigma (per coordinate, from
+/// their median squared residual, sigma^2 chi2(2) having the median 2 ln 2 sigma^2), at most
 /// SCALE_ROUNDS times. The median over all points sits among the outliers' residuals when
 /// they are many, so the classical threshold reaches past structures a few sigma off the
-/// plane (on the Graffiti pair: 6.5-8 px, past a cluster 4.4-7.6 px off; then 2.7 and 3.6-3.7 px).
+/// plane (on the Graffiti pair: 6.5-8 px, past a cluster 4.4-7.6 px off; then 2.7 and
+/// 3.6-3.7 px).
 fn lmeds_threshold2(data: &Data, b: &Model) -> Result<f64> {
     let factor = 1.0 + 5.0 / (data.n as f64 - 4.0).max(1.0);
     let mut t2 = (2.5 * 1.4826 * factor).powi(2) * b.cost;
