@@ -406,6 +406,16 @@ class LivePage:
         )
         return list(rows or [])
 
+    def definitions(self, list_id: str) -> dict[str, str]:
+        """A description list's terms and their values, read at once (the page redraws #stats
+        with every frame, so element by element they go stale): {term: value}."""
+        pairs = self.driver.execute_script(
+            "return Array.from(document.querySelectorAll('#' + arguments[0] + ' dt')).map("
+            "(t) => [t.textContent.trim(), (t.nextElementSibling || {}).textContent || ''])",
+            list_id,
+        )
+        return {term: value.strip() for term, value in pairs or []}
+
     def parts(self, at_least: int = 3, timeout: float = 90.0) -> list[list[str]]:
         """The #parts table's rows once it lists ``at_least`` parts (the video loops)."""
 

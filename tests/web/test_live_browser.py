@@ -147,9 +147,7 @@ def test_5_watch_shows_the_parts_with_their_coordinates(page: LivePage, video: L
         assert math.isfinite(float(x)) and math.isfinite(float(y)), row
         assert float(std) > 0 and (angle == NONE or math.isfinite(float(angle))), row
     assert "robot coordinates" in page.text("parts-caption")
-    terms = [t.text for t in page.css("#stats dt")]
-    values = [v.text for v in page.css("#stats dd")]
-    stats = dict(zip(terms, values, strict=True))
+    stats = page.definitions("stats")
     assert float(stats["fps"]) > 0 and int(stats["frames"]) > 0, stats
 
 
