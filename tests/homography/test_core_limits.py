@@ -18,6 +18,9 @@ import numpy as np, planarcal, sys
 rng = np.random.default_rng(0)
 src, dst = rng.uniform(0, 1000, (2, 3000, 2))
 options = dict(threshold=1.0, confidence=0.999999, max_iters=10**7)
+if sys.argv[1] == "lmeds":  # millions of points: seconds of medians and concentration steps
+    src, dst = rng.uniform(0, 1000, (2, 4_000_000, 2))
+    options = dict(method="lmeds")
 print("ready", flush=True)
 try:
     if sys.argv[1] == "batch":
@@ -31,7 +34,7 @@ print("finished", flush=True)
 """
 
 
-@pytest.mark.parametrize("mode", ["single", "batch"])
+@pytest.mark.parametrize("mode", ["single", "batch", "lmeds"])
 def test_ctrl_c_stops_a_long_robust_search(mode: str) -> None:
     child = subprocess.Popen(
         [sys.executable, "-c", HOPELESS, mode], stdout=subprocess.PIPE, text=True

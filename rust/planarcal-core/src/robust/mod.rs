@@ -773,6 +773,10 @@ fn lmeds_search(
     let mut best: Option<Model> = None;
     for mut model in starts {
         for _ in 0..MAX_CONCENTRATION_STEPS {
+            // Up to fifty passes over every point: millions of points take seconds.
+            if stop() {
+                return Err(HomographyError::Interrupted { iterations });
+            }
             lo_runs += 1;
             let half = data.inliers(&model.h, model.cost)?;
             let Some(h) = local_opt::fit(data, &half) else {
