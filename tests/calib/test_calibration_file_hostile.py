@@ -11,6 +11,7 @@ import math
 import os
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -140,6 +141,29 @@ def test_edited_intrinsics_are_refused(with_intrinsics: Calibration, tmp_path: P
     data = with_intrinsics.to_dict()
     data["intrinsics"]["image_size_px"] = [640, 360]
     _refused(tmp_path / "size.json", data, r"image_size_px \[1280, 720\] is not the intrinsics'")
+
+
+@pytest.mark.parametrize(
+    ("path", "value"),
+    [
+        (("intrinsics", "camera_matrix", 0, 0), 5e-324),
+        (("intrinsics", "camera_matrix", 0, 1), 1e18),
+        (("intrinsics", "camera_matrix", 1, 2), 1e308),
+        (("intrinsics", "dist_coeffs", 0), -1e308),
+    ],
+)
+def test_numbers_that_overflow_are_refused_without_numpy_warnings(
+    with_intrinsics: Calibration, tmp_path: Path, path: tuple[Any, ...], value: float
+) -> None:
+    """An edit whose arithmetic overflows before the check that refuses it: the refusal says
+    what is wrong, and NumPy's RuntimeWarnings about the intermediate values (which the
+    hostile-edit properties once printed in CI) stay out of the user's console."""
+    file = tmp_path / "overflow.json"
+    file.write_text(json.dumps(_replaced(with_intrinsics.to_dict(), path, value)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(CalibrationFileError):
+            Calibration.load(file)
 
 
 def test_a_file_without_its_residuals_is_refused(plain: Calibration, tmp_path: Path) -> None:

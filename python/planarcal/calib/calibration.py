@@ -1240,39 +1240,42 @@ class Calibration:
         version 4 file) if a field is not what it was saved with (its digest).
         ``trust_edits=True`` accepts a file edited on purpose: every check but the digest
         (see ``load``)."""
-        try:
-            c = calibration_file.contents_from_dict(data, source)
-            cal = cls.__new__(cls)
-            cal._init(
-                c.world,
-                c.image,
-                c.fit,
-                c.solver,
-                c.refine,
-                c.board,
-                c.image_size,
-                c.intrinsics,
-                c.world_scale,
-                c.robot_frame,
-                c.created,
-                ids=c.point_ids,
-                placement_names=c.placement_names,
-                placement_partial=c.placement_partial,
-                object_settings=c.object_settings,
-            )
-            errors_px = cal.reprojection_errors_px
-            calibration_file.check_residuals(errors_px, c.residuals, source)
-            calibration_file.check_consistent(cal, data, source)
-        except CalibrationFileError:
-            raise
-        except (ArgumentError, HomographyError, IntrinsicsError, LensModelError) as e:
-            # Numbers that pass every check of their own but cannot be used together.
-            raise CalibrationFileError(f"{source}: {e}") from None
-        except (OverflowError, RecursionError) as e:
-            # A dict built in Python, not read from a file (read_file refuses these).
-            raise CalibrationFileError(
-                f"{source}: a number too large or a value nested too deeply ({e})"
-            ) from None
+        # An edited number can overflow on its way to the check that refuses it: the refusal
+        # names the problem, and NumPy's warnings about the intermediate values are noise.
+        with np.errstate(all="ignore"):
+            try:
+                c = calibration_file.contents_from_dict(data, source)
+                cal = cls.__new__(cls)
+                cal._init(
+                    c.world,
+                    c.image,
+                    c.fit,
+                    c.solver,
+                    c.refine,
+                    c.board,
+                    c.image_size,
+                    c.intrinsics,
+                    c.world_scale,
+                    c.robot_frame,
+                    c.created,
+                    ids=c.point_ids,
+                    placement_names=c.placement_names,
+                    placement_partial=c.placement_partial,
+                    object_settings=c.object_settings,
+                )
+                errors_px = cal.reprojection_errors_px
+                calibration_file.check_residuals(errors_px, c.residuals, source)
+                calibration_file.check_consistent(cal, data, source)
+            except CalibrationFileError:
+                raise
+            except (ArgumentError, HomographyError, IntrinsicsError, LensModelError) as e:
+                # Numbers that pass every check of their own but cannot be used together.
+                raise CalibrationFileError(f"{source}: {e}") from None
+            except (OverflowError, RecursionError) as e:
+                # A dict built in Python, not read from a file (read_file refuses these).
+                raise CalibrationFileError(
+                    f"{source}: a number too large or a value nested too deeply ({e})"
+                ) from None
         if c.version >= calibration_file.DIGEST_SINCE and not trust_edits:
             calibration_file.check_digest(data, source)
         return cal
